@@ -1,0 +1,72 @@
+"""Control allocation (4) for the "+" quadrotor in FRD, both directions.
+
+Rotors sit on the body axes at distance ``L``, numbered counter-clockwise seen from above
+starting at +x: 1 front (+x), 2 left (-y), 3 back (-x), 4 right (+y). Rotor ``i`` pushes
+``F_i = k_F w_i^2`` along ``-z_B`` from position ``p_i``, so its moment is
+``p_i x (0, 0, -F_i) = (-p_y F_i, p_x F_i, 0)``. Rotors 1 and 3 spin clockwise seen from above
+(angular velocity along +z_B, reaction torque ``-k_Q w^2`` about z_B), rotors 2 and 4
+counter-clockwise (``+k_Q w^2``). With ``W_i = w_i^2``::
+
+    tau_x = L k_F (W2 - W4)        left rotor up  -> roll right  (+x)
+    tau_y = L k_F (W1 - W3)        front rotor up -> nose up     (+y)
+    tau_z = k_Q (-W1 + W2 - W3 + W4)                             yaw right (+z, down)
+    T     = k_F (W1 + W2 + W3 + W4)
+
+This is (4) with the roll row's sign flipped by the FRD y axis. The plant calls
+:func:`wrench_from_rotor_speeds` (the physics) and the onboard loop :func:`rotor_speeds_sq_for`
+(the mixer): the matrix exists once.
+"""
+
+from __future__ import annotations
+
+from .params import VehicleParams
+from .vector import Real, Vec3, clip
+
+__all__ = [
+    "Rotors4",
+    "wrench_from_rotor_speeds_sq",
+    "wrench_from_rotor_speeds",
+    "rotor_speeds_sq_for",
+    "allocate",
+]
+
+Rotors4 = tuple[Real, Real, Real, Real]
+
+
+def wrench_from_rotor_speeds_sq(w_sq: Rotors4, vehicle: VehicleParams) -> tuple[Vec3, Real]:
+    """Body torque [N m] and collective thrust [N] of squared rotor speeds, (4)."""
+    kf, kq, arm = vehicle.k_thrust_n_s2, vehicle.k_torque_nm_s2, vehicle.arm_length_m
+    w1, w2, w3, w4 = w_sq
+    torque = (arm * kf * (w2 - w4), arm * kf * (w1 - w3), kq * (-w1 + w2 - w3 + w4))
+    return torque, kf * (w1 + w2 + w3 + w4)
+
+
+def wrench_from_rotor_speeds(w: Rotors4, vehicle: VehicleParams) -> tuple[Vec3, Real]:
+    """As :func:`wrench_from_rotor_speeds_sq`, from rotor speeds [rad/s]."""
+    return wrench_from_rotor_speeds_sq((w[0] * w[0], w[1] * w[1], w[2] * w[2], w[3] * w[3]), vehicle)
+
+
+def rotor_speeds_sq_for(torque_nm: Vec3, thrust_n: Real, vehicle: VehicleParams) -> Rotors4:
+    """``Omega = B^-1 u``, solved analytically (unclipped, may leave the rotors' range)."""
+    kf, kq, arm = vehicle.k_thrust_n_s2, vehicle.k_torque_nm_s2, vehicle.arm_length_m
+    a = thrust_n / kf
+    x = torque_nm[0] / (arm * kf)
+    y = torque_nm[1] / (arm * kf)
+    z = torque_nm[2] / kq
+    front_back = 0.25 * (a - z)
+    left_right = 0.25 * (a + z)
+    return (front_back + 0.5 * y, left_right + 0.5 * x, front_back - 0.5 * y, left_right - 0.5 * x)
+
+
+def allocate(torque_nm: Vec3, thrust_n: Real, vehicle: VehicleParams) -> tuple[Rotors4, Vec3, Real]:
+    """Squared rotor speeds clipped to the rotors' range, and the wrench they actually produce.
+
+    The disturbance observers must be fed the applied torque and thrust (SPEC section 1), which
+    differ from the request whenever a rotor saturates.
+    """
+    lo = vehicle.rotor_speed_min_rad_s ** 2
+    hi = vehicle.rotor_speed_max_rad_s ** 2
+    w = rotor_speeds_sq_for(torque_nm, thrust_n, vehicle)
+    clipped = (clip(w[0], lo, hi), clip(w[1], lo, hi), clip(w[2], lo, hi), clip(w[3], lo, hi))
+    torque, thrust = wrench_from_rotor_speeds_sq(clipped, vehicle)
+    return clipped, torque, thrust

@@ -1,0 +1,209 @@
+"""Quaternion attitude tracking: PD, PD+DO and boundary-layer ISM+DO (paper section III).
+
+The three controllers share the geometric error and the nominal law; they differ only in the
+robust term ``tau_1`` of (23)::
+
+    PD       tau = tau_0
+    PD+DO    tau = tau_0 - h_tau_hat
+    ISM+DO   tau = tau_0 - h_tau_hat - K_w sat(s / eps)
+
+Error function ``H = eps~^T eps~`` gives the feedback vector ``e = 2 eta~ eps~``, stable at both
+``eta~ = +-1``: ``q`` and ``-q`` give the same torque, so there is no unwinding and no sign logic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+from . import quaternion as quat
+from .observers import TorqueObserver
+from .params import AttitudeGains
+from .quaternion import Quat
+from .vector import (
+    ZERO3,
+    Real,
+    Vec3,
+    absolute,
+    add,
+    cross,
+    mul,
+    sat,
+    scale,
+    sub,
+    where,
+)
+
+__all__ = [
+    "ATTITUDE_CONTROLLERS",
+    "AttitudeError",
+    "attitude_error",
+    "feedback_vector",
+    "feedback_vector_rate",
+    "rate_error",
+    "nominal_torque",
+    "AttitudeController",
+]
+
+ATTITUDE_CONTROLLERS = ("pd", "pd_do", "ism_do")
+
+
+def attitude_error(q: Quat, q_d: Quat) -> Quat:
+    """``q~ = q_d^* ⊗ q``: rotation from the desired frame D to the body frame B (5)."""
+    return quat.mul(quat.conj(q_d), q)
+
+
+def feedback_vector(q_err: Quat) -> Vec3:
+    """``e = 2 eta~ eps~``, the gradient form of ``H = eps~^T eps~`` (section III.A)."""
+    k = 2.0 * q_err[0]
+    return (k * q_err[1], k * q_err[2], k * q_err[3])
+
+
+def rate_error(q_err: Quat, omega_rad_s: Vec3, omega_d_rad_s: Vec3) -> tuple[Vec3, Vec3]:
+    """``(omega~, R~^T omega_d)`` with ``omega~ = omega - R~^T omega_d`` (6); ``omega_d`` in D."""
+    omega_d_body = quat.rotate_inverse(q_err, omega_d_rad_s)
+    return sub(omega_rad_s, omega_d_body), omega_d_body
+
+
+def feedback_vector_rate(q_err: Quat, omega_err_rad_s: Vec3) -> Vec3:
+    """``d/dt e`` from the error kinematics ``q~' = 1/2 q~ ⊗ (0, omega~)`` (no differentiation)."""
+    eta = q_err[0]
+    eps: Vec3 = (q_err[1], q_err[2], q_err[3])
+    # e' = 2 (eta' eps + eta eps'), eta' = -1/2 eps.w, eps' = 1/2 (eta w + eps x w)
+    along = eps[0] * omega_err_rad_s[0] + eps[1] * omega_err_rad_s[1] + eps[2] * omega_err_rad_s[2]
+    ew = cross(eps, omega_err_rad_s)
+    return (
+        -eps[0] * along + eta * (eta * omega_err_rad_s[0] + ew[0]),
+        -eps[1] * along + eta * (eta * omega_err_rad_s[1] + ew[1]),
+        -eps[2] * along + eta * (eta * omega_err_rad_s[2] + ew[2]),
+    )
+
+
+class AttitudeError(NamedTuple):
+    """Everything the laws need about the tracking error at one instant."""
+
+    q_err: Quat
+    e: Vec3
+    """feedback vector 2 eta~ eps~"""
+    e_dot: Vec3
+    omega_err: Vec3
+    omega_d_body: Vec3
+    """R~^T omega_d: the desired rate expressed in B"""
+
+    @staticmethod
+    def of(q: Quat, omega_rad_s: Vec3, q_d: Quat, omega_d_rad_s: Vec3) -> AttitudeError:
+        q_err = attitude_error(q, q_d)
+        omega_err, omega_d_body = rate_error(q_err, omega_rad_s, omega_d_rad_s)
+        return AttitudeError(
+            q_err, feedback_vector(q_err), feedback_vector_rate(q_err, omega_err), omega_err, omega_d_body
+        )
+
+
+def nominal_torque(
+    err: AttitudeError,
+    omega_rad_s: Vec3,
+    omega_d_dot_rad_s2: Vec3,
+    inertia_kg_m2: Vec3,
+    k_v: Real,
+    c: Real,
+) -> Vec3:
+    """``tau_0 = J0 (R~^T omega_d' + (R~^T)' omega_d - K_v e' - c e) + omega x J0 omega``  (13).
+
+    ``(R~^T)' omega_d = -omega~ x (R~^T omega_d)`` because ``R~' = R~ S(omega~)``.
+    """
+    ff = add(quat.rotate_inverse(err.q_err, omega_d_dot_rad_s2), cross(err.omega_d_body, err.omega_err))
+    e, e_dot = err.e, err.e_dot
+    acc = (
+        ff[0] - k_v * e_dot[0] - c * e[0],
+        ff[1] - k_v * e_dot[1] - c * e[1],
+        ff[2] - k_v * e_dot[2] - c * e[2],
+    )
+    j_omega = mul(inertia_kg_m2, omega_rad_s)
+    return add(mul(inertia_kg_m2, acc), cross(omega_rad_s, j_omega))
+
+
+@dataclass
+class AttitudeController:
+    """PD, PD+DO or ISM+DO attitude tracking, chosen by ``kind`` (one of ATTITUDE_CONTROLLERS).
+
+    Call :meth:`update` once per attitude step with the latest gyro rate and the torque that
+    the rotors actually applied in the previous step (from :func:`allocation.allocate`).
+    """
+
+    kind: str
+    gains: AttitudeGains
+    inertia_kg_m2: Vec3
+    """J0, the controller's nominal inertia"""
+    z: Vec3 = ZERO3
+    """ISM integral state of (10)-(11)"""
+    s: Vec3 = ZERO3
+    """last sliding variable, for logs"""
+    _started: bool = field(default=False, repr=False)
+    observer: TorqueObserver = field(init=False)
+
+    def __post_init__(self) -> None:
+        if self.kind not in ATTITUDE_CONTROLLERS:
+            raise ValueError(f"unknown attitude controller {self.kind!r}; expected one of {ATTITUDE_CONTROLLERS}")
+        self.observer = TorqueObserver(self.inertia_kg_m2, self.gains.observer_gain_rad_s)
+        self._k_v = 2.0 * self.gains.omega_c_rad_s
+        self._c = self.gains.omega_c_rad_s ** 2
+        eps = self.gains.boundary_layer_rad_s
+        self._eps = eps
+        # K = k_s J0 (inside the layer), K_w = K eps
+        self._k_w = mul(mul(self.gains.sliding_gain_rad_s, self.inertia_kg_m2), eps)
+        self._uses_observer = self.kind != "pd"
+        self._uses_ism = self.kind == "ism_do"
+
+    def reset(self) -> None:
+        self.z = ZERO3
+        self.s = ZERO3
+        self._started = False
+        self.observer.reset()
+
+    @property
+    def disturbance_estimate_nm(self) -> Vec3:
+        return self.observer.estimate_nm
+
+    def update(
+        self,
+        q: Quat,
+        omega_rad_s: Vec3,
+        q_d: Quat,
+        omega_d_rad_s: Vec3,
+        torque_applied_prev_nm: Vec3,
+        dt_s: float,
+        omega_d_dot_rad_s2: Vec3 = ZERO3,
+    ) -> Vec3:
+        """Requested body torque [N m] for this step."""
+        err = AttitudeError.of(q, omega_rad_s, q_d, omega_d_rad_s)
+        tau = nominal_torque(err, omega_rad_s, omega_d_dot_rad_s2, self.inertia_kg_m2, self._k_v, self._c)
+        if self._uses_observer:
+            h_hat = self.observer.update(omega_rad_s, torque_applied_prev_nm, dt_s)
+            tau = sub(tau, h_hat)
+        if self._uses_ism:
+            tau = sub(tau, self._sliding_term(err, dt_s))
+        return tau
+
+    def _sliding_term(self, err: AttitudeError, dt_s: float) -> Vec3:
+        """``K_w sat(s / eps)`` with ``s = s0 + z``, ``s0 = omega~ + K_v e``, ``z' = c e`` (10), (11), (23).
+
+        Anti-windup ([29]): where ``|s / eps| > 1`` the element is reset to ``z = -s0`` and not
+        integrated, so the integral cannot wind up while the term saturates.
+        """
+        k_v, c, eps = self._k_v, self._c, self._eps
+        s0 = add(err.omega_err, scale(k_v, err.e))
+        if not self._started:
+            self.z = (-s0[0], -s0[1], -s0[2])  # z(0) = -s0(0): sliding from the first instant
+            self._started = True
+        z = self.z
+        s = add(s0, z)
+        self.s = s
+        z_next = add(z, scale(c * dt_s, err.e))
+        if self.gains.anti_windup:
+            z_next = (
+                where(absolute(s[0]) > eps[0], -s0[0], z_next[0]),
+                where(absolute(s[1]) > eps[1], -s0[1], z_next[1]),
+                where(absolute(s[2]) > eps[2], -s0[2], z_next[2]),
+            )
+        self.z = z_next
+        return mul(self._k_w, sat(s, eps))

@@ -1,0 +1,101 @@
+"""Attitude, rate and thrust reference from the control force (section IV.B, SPEC section 4).
+
+(32) as printed is garbled; the quaternion that turns the hover thrust direction ``-e3`` onto
+``f / |f|`` is ``q_f ∝ [|f| - e3^T f, (-e3) x f]``. It is singular only for a force pointing
+straight down, which :func:`limit_force` rules out by keeping a minimum upward component.
+(34) differentiates the *desired* rotation of consecutive position steps; because that
+amplifies sensor noise, the rate is low-pass filtered and then limited in norm.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from . import quaternion as quat
+from .params import ReferenceParams
+from .quaternion import Quat
+from .vector import (
+    ZERO3,
+    Real,
+    Vec3,
+    clip_norm,
+    lowpass_alpha,
+    maximum,
+    norm,
+    sqrt,
+    where,
+)
+
+__all__ = [
+    "limit_force",
+    "thrust_quaternion",
+    "attitude_from_force",
+    "RateReference",
+]
+
+
+def limit_force(force_ned_n: Vec3, min_up_n: Real, tilt_max_rad: float) -> Vec3:
+    """The force with at least ``min_up_n`` upward and at most ``tilt_max_rad`` off vertical.
+
+    The vertical component is raised first (never towards the ground), then the horizontal part
+    is shortened, keeping its direction, to fit the tilt cone: the altitude loop keeps priority.
+    """
+    up = maximum(-force_ned_n[2], min_up_n)
+    horizontal = sqrt(force_ned_n[0] * force_ned_n[0] + force_ned_n[1] * force_ned_n[1])
+    h_max = up * math.tan(tilt_max_rad)
+    k = where(horizontal > h_max, h_max / maximum(horizontal, 1e-300), 1.0)
+    return (k * force_ned_n[0], k * force_ned_n[1], -up)
+
+
+def thrust_quaternion(force_ned_n: Vec3) -> Quat:
+    """``q_f`` of (32), corrected: the shortest rotation taking ``-e3`` to ``f / |f|``.
+
+    ``[|f| - e3^T f, (-e3) x f] = [|f| - f_z, f_y, -f_x, 0]``, normalised. Requires ``f`` not
+    pointing straight down (``f_z < |f|``), which :func:`limit_force` guarantees.
+    """
+    fx, fy, fz = force_ned_n
+    w = norm(force_ned_n) - fz
+    n = sqrt(w * w + fx * fx + fy * fy)
+    return (w / n, fy / n, -fx / n, 0.0 * fx)
+
+
+def attitude_from_force(force_ned_n: Vec3, yaw_rad: Real) -> tuple[Quat, Real]:
+    """``(q_d, T)`` with ``q_d = q_f ⊗ q_psi`` (33) and ``T = |f|``.
+
+    ``q_psi`` rotates about the inertial z axis, so yaw is the angle about z_I, not the Euler yaw.
+    """
+    return quat.mul(thrust_quaternion(force_ned_n), quat.from_yaw(yaw_rad)), norm(force_ned_n)
+
+
+@dataclass
+class RateReference:
+    """Angular-velocity command of (34) from consecutive desired attitudes.
+
+    ``omega_d,k = log(q_d,k-1^* ⊗ q_d,k) / t_s`` (expressed in D), low-pass filtered with
+    ``rate_filter_time_constant_s`` and then limited to ``rate_limit_rad_s`` in norm.
+    """
+
+    params: ReferenceParams = field(default_factory=ReferenceParams)
+    omega_d: Vec3 = ZERO3
+    _q_prev: Quat | None = field(default=None, repr=False)
+
+    def reset(self) -> None:
+        self.omega_d = ZERO3
+        self._q_prev = None
+
+    def update(self, q_d: Quat, dt_s: float) -> Vec3:
+        prev = self._q_prev
+        self._q_prev = q_d
+        if prev is None:
+            return self.omega_d
+        delta = quat.log(quat.mul(quat.conj(prev), q_d))
+        raw = (delta[0] / dt_s, delta[1] / dt_s, delta[2] / dt_s)
+        tc = self.params.rate_filter_time_constant_s
+        if tc > 0.0:
+            a = lowpass_alpha(1.0 / tc, dt_s)
+            o = self.omega_d
+            raw = (o[0] + a * (raw[0] - o[0]), o[1] + a * (raw[1] - o[1]), o[2] + a * (raw[2] - o[2]))
+        self.omega_d = clip_norm(raw, self.params.rate_limit_rad_s)
+        return self.omega_d
+

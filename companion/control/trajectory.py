@@ -1,0 +1,71 @@
+"""Velocity-limited position and yaw references between waypoints (the filtered reference of E4).
+
+The paper generates velocity and acceleration "by filtering the position between waypoints".
+:class:`ReferenceFilter` is a critically damped second-order filter on the target position
+whose acceleration and speed are limited in norm, so a jump to the next waypoint becomes a
+smooth reference with ``|v| <= max_speed_m_s``; yaw follows a rate-limited first-order filter.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+from .params import TrajectoryParams
+from .vector import (
+    ZERO3,
+    Real,
+    Vec3,
+    atan2,
+    clip,
+    clip_norm,
+    cos,
+    sin,
+    sub,
+)
+
+__all__ = ["PositionReference", "ReferenceFilter", "wrap_angle"]
+
+
+class PositionReference(NamedTuple):
+    """Desired position, velocity and acceleration (NED) and yaw about the inertial z axis."""
+
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3 = ZERO3
+    accel_ned_m_s2: Vec3 = ZERO3
+    yaw_rad: Real = 0.0
+
+
+def wrap_angle(angle_rad: Real) -> Real:
+    """Angle wrapped to (-pi, pi]."""
+    return atan2(sin(angle_rad), cos(angle_rad))
+
+
+@dataclass
+class ReferenceFilter:
+    """Smooth reference towards a target position and yaw; start it where the vehicle is."""
+
+    params: TrajectoryParams
+    pos_ned_m: Vec3
+    yaw_rad: Real = 0.0
+    vel_ned_m_s: Vec3 = ZERO3
+    accel_ned_m_s2: Vec3 = field(default=ZERO3)
+
+    def update(self, target_ned_m: Vec3, target_yaw_rad: Real, dt_s: float) -> PositionReference:
+        p = self.params
+        w = p.bandwidth_rad_s
+        d = sub(target_ned_m, self.pos_ned_m)
+        v = self.vel_ned_m_s
+        a_cmd = clip_norm(
+            (w * w * d[0] - 2.0 * w * v[0], w * w * d[1] - 2.0 * w * v[1], w * w * d[2] - 2.0 * w * v[2]),
+            p.max_accel_m_s2,
+        )
+        v_new = clip_norm((v[0] + a_cmd[0] * dt_s, v[1] + a_cmd[1] * dt_s, v[2] + a_cmd[2] * dt_s), p.max_speed_m_s)
+        self.accel_ned_m_s2 = ((v_new[0] - v[0]) / dt_s, (v_new[1] - v[1]) / dt_s, (v_new[2] - v[2]) / dt_s)
+        r = self.pos_ned_m
+        h = 0.5 * dt_s
+        self.pos_ned_m = (r[0] + h * (v[0] + v_new[0]), r[1] + h * (v[1] + v_new[1]), r[2] + h * (v[2] + v_new[2]))
+        self.vel_ned_m_s = v_new
+        yaw_step = clip(w * wrap_angle(target_yaw_rad - self.yaw_rad), -p.max_yaw_rate_rad_s, p.max_yaw_rate_rad_s)
+        self.yaw_rad = wrap_angle(self.yaw_rad + yaw_step * dt_s)
+        return PositionReference(self.pos_ned_m, self.vel_ned_m_s, self.accel_ned_m_s2, self.yaw_rad)

@@ -1,0 +1,117 @@
+"""The simulated vehicle's firmware at 1 kHz: attitude estimate, attitude loop, mixer.
+
+As on the paper's Hummingbird (section V.B): a strapdown integration of the gyros corrected
+from the tracking system's attitude (a complementary filter that also learns the gyro bias),
+the attitude controller of :mod:`companion.control.attitude`, and the allocation of
+:mod:`companion.control.allocation`, whose rotor-speed commands are quantised like the
+vehicle's 8-bit motor interface. The applied torque (after rotor limits and quantisation) is
+fed back to the torque observer.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from companion.control import quaternion as quat
+from companion.control.allocation import Rotors4, rotor_speeds_sq_for, wrench_from_rotor_speeds
+from companion.control.attitude import AttitudeController
+from companion.control.outer_loop import AttitudeSetpoint
+from companion.control.params import AttitudeGains, VehicleParams
+from companion.control.quaternion import Quat
+from companion.control.vector import ZERO3, Real, Vec3, clip, sqrt
+
+__all__ = ["EstimatorGains", "AttitudeEstimator", "OnboardAttitudeLoop"]
+
+
+@dataclass(frozen=True)
+class EstimatorGains:
+    attitude_gain: float = 0.1
+    """fraction of the tracking-system attitude error corrected per sample (about 0.17 s at 60 Hz)"""
+    bias_gain: float = 0.005
+    """fraction of that error, per sample, taken into the gyro-bias estimate [rad/s per rad]"""
+
+
+@dataclass
+class AttitudeEstimator:
+    """Gyro strapdown at the loop rate, corrected by each tracking sample (complementary filter)."""
+
+    gains: EstimatorGains
+    q: Quat
+    gyro_bias: Vec3 = ZERO3
+
+    def predict(self, gyro_rad_s: Vec3, dt_s: float) -> Vec3:
+        """Integrate the bias-corrected rate; returns that rate (what the controller uses)."""
+        b = self.gyro_bias
+        omega = (gyro_rad_s[0] - b[0], gyro_rad_s[1] - b[1], gyro_rad_s[2] - b[2])
+        self.q = quat.integrate(self.q, omega, dt_s)
+        return omega
+
+    def correct(self, q_measured: Quat) -> None:
+        """Pull the estimate towards a tracking sample and learn the gyro bias (PI correction).
+
+        A positive bias makes the estimate run ahead of the measurement, giving a negative error,
+        so the bias estimate moves against the error.
+        """
+        err = quat.log(quat.mul(quat.conj(self.q), q_measured))  # body-frame error [rad]
+        k, kb = self.gains.attitude_gain, self.gains.bias_gain
+        self.q = quat.normalize(quat.mul(self.q, quat.exp((k * err[0], k * err[1], k * err[2]))))
+        b = self.gyro_bias
+        self.gyro_bias = (b[0] - kb * err[0], b[1] - kb * err[1], b[2] - kb * err[2])
+
+
+def _round(x: Real) -> Real:
+    return np.rint(x) if type(x) is np.ndarray else float(round(x))
+
+
+@dataclass
+class OnboardAttitudeLoop:
+    """Attitude controller plus mixer: setpoint and sensors in, rotor speed commands out."""
+
+    controller: AttitudeController
+    vehicle: VehicleParams
+    """the firmware's nominal vehicle (J0, rotor constants)"""
+    command_levels: int = 256
+    torque_applied_nm: Vec3 = ZERO3
+    thrust_applied_n: Real = 0.0
+    rotor_cmd_rad_s: Rotors4 = field(default=(0.0, 0.0, 0.0, 0.0))
+
+    def __post_init__(self) -> None:
+        v = self.vehicle
+        self._w_min = v.rotor_speed_min_rad_s
+        self._w_max = v.rotor_speed_max_rad_s
+        self._step = (self._w_max - self._w_min) / (self.command_levels - 1)
+
+    @classmethod
+    def create(cls, kind: str, vehicle: VehicleParams, gains: AttitudeGains | None = None,
+               command_levels: int = 256) -> OnboardAttitudeLoop:
+        ctrl = AttitudeController(kind, gains or AttitudeGains(), vehicle.inertia_kg_m2)
+        return cls(ctrl, vehicle, command_levels)
+
+    def reset(self) -> None:
+        self.controller.reset()
+        self.torque_applied_nm = ZERO3
+        self.thrust_applied_n = 0.0
+
+    def quantise(self, w_sq: Real) -> Real:
+        """Rotor speed command [rad/s] for a squared speed: clipped and quantised."""
+        w = clip(sqrt(clip(w_sq, 0.0, math.inf)), self._w_min, self._w_max)
+        return self._w_min + _round((w - self._w_min) / self._step) * self._step
+
+    def update(self, q: Quat, omega_rad_s: Vec3, sp: AttitudeSetpoint, dt_s: float) -> Rotors4:
+        tau = self.controller.update(q, omega_rad_s, sp.q_d, sp.omega_d_rad_s, self.torque_applied_nm, dt_s)
+        w_sq = rotor_speeds_sq_for(tau, sp.thrust_n, self.vehicle)
+        qz = self.quantise
+        cmd = (qz(w_sq[0]), qz(w_sq[1]), qz(w_sq[2]), qz(w_sq[3]))
+        self.torque_applied_nm, self.thrust_applied_n = wrench_from_rotor_speeds(cmd, self.vehicle)
+        self.rotor_cmd_rad_s = cmd
+        return cmd
+
+    def stop(self) -> Rotors4:
+        """Motors off (disarmed): nothing applied, the observers see zero torque."""
+        self.torque_applied_nm = ZERO3
+        self.thrust_applied_n = 0.0
+        self.rotor_cmd_rad_s = (0.0, 0.0, 0.0, 0.0)
+        return self.rotor_cmd_rad_s

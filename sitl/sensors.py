@@ -1,0 +1,125 @@
+"""Sensors of the paper's vehicle (section V.B, SPEC section 5).
+
+- IMU at the plant rate: gyro and accelerometer with a constant bias (drawn from the seed) and
+  white noise.
+- Motion capture at 60 Hz: position and attitude with noise, delivered after a transport
+  delay. Velocity and acceleration come from differencing consecutive samples and low-pass
+  filtering, which adds the delay the paper mentions; the filter state is held between samples.
+
+Defaults: an MPU-6000-class IMU (gyro 0.005 rad/s and accelerometer 0.05 m/s^2 per 1 kHz
+sample; biases 0.005 rad/s, 0.05 m/s^2) and a sub-millimetre tracking system (0.3 mm, 0.1 deg).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import NamedTuple, Sequence
+
+from companion.control import quaternion as quat
+from companion.control.quaternion import Quat
+from companion.control.vector import ZERO3, Vec3, lowpass_alpha
+
+from .dynamics import RigidBodyState, Wrench
+from .noise import GaussianStream
+
+__all__ = ["SensorParams", "ImuSample", "Imu", "MocapSample", "Mocap"]
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    gyro_noise_rad_s: float = 0.005
+    gyro_bias_rad_s: float = 0.005
+    accel_noise_m_s2: float = 0.05
+    accel_bias_m_s2: float = 0.05
+    mocap_rate_hz: float = 60.0
+    mocap_pos_noise_m: float = 0.0003
+    mocap_att_noise_rad: float = math.radians(0.1)
+    mocap_delay_s: float = 0.01
+    velocity_filter_hz: float = 15.0
+    accel_filter_hz: float = 8.0
+
+
+class ImuSample(NamedTuple):
+    gyro_rad_s: Vec3
+    specific_force_body_m_s2: Vec3
+
+
+class Imu:
+    def __init__(self, params: SensorParams, seeds: int | Sequence[int]) -> None:
+        self.params = params
+        self._noise = GaussianStream(seeds, "gyro", 6)
+        b = GaussianStream(seeds, "bias", 6).initial()
+        gb, ab = params.gyro_bias_rad_s, params.accel_bias_m_s2
+        self.gyro_bias: Vec3 = (gb * b[0], gb * b[1], gb * b[2])
+        self.accel_bias: Vec3 = (ab * b[3], ab * b[4], ab * b[5])
+
+    def sample(self, state: RigidBodyState, wrench: Wrench) -> ImuSample:
+        n = self._noise.next()
+        gn, an = self.params.gyro_noise_rad_s, self.params.accel_noise_m_s2
+        w, gb = state.omega_rad_s, self.gyro_bias
+        f, ab = wrench.specific_force_body_m_s2, self.accel_bias
+        return ImuSample(
+            (w[0] + gb[0] + gn * n[0], w[1] + gb[1] + gn * n[1], w[2] + gb[2] + gn * n[2]),
+            (f[0] + ab[0] + an * n[3], f[1] + ab[1] + an * n[4], f[2] + ab[2] + an * n[5]),
+        )
+
+
+class MocapSample(NamedTuple):
+    """Latest delivered tracking data and what is derived from it."""
+
+    time_s: float
+    """time the delivered sample was taken"""
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
+    accel_ned_m_s2: Vec3
+    q: Quat
+
+
+class Mocap:
+    """60 Hz tracking with delay; :meth:`update` returns a new sample when one is delivered."""
+
+    def __init__(self, params: SensorParams, seeds: int | Sequence[int], state: RigidBodyState) -> None:
+        self.params = params
+        self._noise = GaussianStream(seeds, "mocap", 6)
+        self.period_s = 1.0 / params.mocap_rate_hz
+        self._next_t = 0.0
+        self._pending: deque[tuple[float, float, Vec3, Quat]] = deque()
+        self._av = lowpass_alpha(2.0 * math.pi * params.velocity_filter_hz, self.period_s)
+        self._aa = lowpass_alpha(2.0 * math.pi * params.accel_filter_hz, self.period_s)
+        self.latest = MocapSample(0.0, state.pos_ned_m, ZERO3, ZERO3, state.q)
+        self._raw_vel_prev: Vec3 = ZERO3
+        self._vel_prev: Vec3 = ZERO3
+        self._pos_prev: Vec3 | None = None
+
+    def update(self, t_s: float, state: RigidBodyState) -> MocapSample | None:
+        p = self.params
+        if t_s + 1e-9 >= self._next_t:
+            n = self._noise.next()
+            pn, an = p.mocap_pos_noise_m, p.mocap_att_noise_rad
+            pos = state.pos_ned_m
+            pos = (pos[0] + pn * n[0], pos[1] + pn * n[1], pos[2] + pn * n[2])
+            q = quat.mul(state.q, quat.exp((an * n[3], an * n[4], an * n[5])))
+            self._pending.append((t_s + p.mocap_delay_s, t_s, pos, q))
+            self._next_t += self.period_s
+        fresh = None
+        while self._pending and self._pending[0][0] <= t_s + 1e-9:
+            _, taken, pos, q = self._pending.popleft()
+            fresh = self._deliver(taken, pos, q)
+        return fresh
+
+    def _deliver(self, taken_s: float, pos: Vec3, q: Quat) -> MocapSample:
+        prev = self._pos_prev
+        self._pos_prev = pos
+        if prev is None:
+            self.latest = MocapSample(taken_s, pos, ZERO3, ZERO3, q)
+            return self.latest
+        inv = 1.0 / self.period_s
+        av, aa = self._av, self._aa
+        v0 = self.latest.vel_ned_m_s
+        vel = tuple(v0[i] + av * ((pos[i] - prev[i]) * inv - v0[i]) for i in range(3))
+        a0 = self.latest.accel_ned_m_s2
+        acc = tuple(a0[i] + aa * ((vel[i] - v0[i]) * inv - a0[i]) for i in range(3))
+        self.latest = MocapSample(taken_s, pos, vel, acc, q)  # type: ignore[arg-type]
+        return self.latest
