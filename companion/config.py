@@ -69,10 +69,10 @@ def locate(text: str, key_path: str) -> int | None:
             )
             if current_ok and best is None:
                 best = lineno
-            if last_idx is not None and table == target_table + [last_name] and counts.get(
-                ".".join(table), 0
-            ) == last_idx:
-                return lineno
+            if table == target_table + [last_name] and (
+                last_idx is None or counts.get(".".join(table), 0) == last_idx
+            ):
+                return lineno  # the key names a whole table: point at its header
             continue
         k = _KEY.match(raw)
         if k and current_ok and k.group(1).strip("\"'") == last_name:

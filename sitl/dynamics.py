@@ -22,12 +22,9 @@ from companion.control.vector import (
     ZERO3,
     Real,
     Vec3,
-    add,
-    cross,
     exp,
-    mul,
-    norm,
-    sub,
+    mat_t_vec,
+    matvec,
     where,
 )
 
@@ -91,62 +88,76 @@ class Plant:
         torque_ext_body_nm: Vec3,
         dt_s: float,
     ) -> Wrench:
-        """Advance ``dt_s`` with the rotor speed command held; returns the wrench that acted."""
+        """Advance ``dt_s`` with the rotor speed command held; returns the wrench that acted.
+
+        Written on unpacked components: this runs 1000 times per simulated second.
+        """
         af = self.airframe
         s = self.state
         if dt_s != self._dt:
             self._alpha = 1.0 - exp(-dt_s / af.rotor_time_constant_s)
             self._dt = dt_s
         a = self._alpha
-        w = s.rotor_speed_rad_s
-        w = (
-            w[0] + a * (rotor_cmd_rad_s[0] - w[0]),
-            w[1] + a * (rotor_cmd_rad_s[1] - w[1]),
-            w[2] + a * (rotor_cmd_rad_s[2] - w[2]),
-            w[3] + a * (rotor_cmd_rad_s[3] - w[3]),
-        )
-        e = self._eff
-        torque_rot, thrust = wrench_from_rotor_speeds_sq(
-            (e[0] * w[0] * w[0], e[1] * w[1] * w[1], e[2] * w[2] * w[2], e[3] * w[3] * w[3]), self.vehicle
+        w1, w2, w3, w4 = s.rotor_speed_rad_s
+        c1, c2, c3, c4 = rotor_cmd_rad_s
+        w1 += a * (c1 - w1)
+        w2 += a * (c2 - w2)
+        w3 += a * (c3 - w3)
+        w4 += a * (c4 - w4)
+        e1, e2, e3, e4 = self._eff
+        (t_rx, t_ry, t_rz), thrust = wrench_from_rotor_speeds_sq(
+            (e1 * w1 * w1, e2 * w2 * w2, e3 * w3 * w3, e4 * w4 * w4), self.vehicle
         )
 
         q = s.q
-        v_rel_body = quat.rotate_inverse(q, sub(s.vel_ned_m_s, wind_ned_m_s))
-        airspeed = norm(v_rel_body)
-        dl, dq = af.drag_linear_n_s_m, af.drag_quadratic_n_s2_m2
-        drag_body = (
-            -(dl[0] + dq * airspeed) * v_rel_body[0],
-            -(dl[1] + dq * airspeed) * v_rel_body[1],
-            -(dl[2] + dq * airspeed) * v_rel_body[2],
+        rot = quat.to_rotmat(q)  # once per step: four vectors change frame below
+        vx, vy, vz = s.vel_ned_m_s
+        ux, uy, uz = wind_ned_m_s
+        bx, by, bz = mat_t_vec(rot, (vx - ux, vy - uy, vz - uz))  # air-relative velocity, body
+        airspeed = (bx * bx + by * by + bz * bz) ** 0.5
+        dlx, dly, dlz = af.drag_linear_n_s_m
+        dq = af.drag_quadratic_n_s2_m2 * airspeed
+        dx, dy, dz = -(dlx + dq) * bx, -(dly + dq) * by, -(dlz + dq) * bz  # drag, body
+        mx, my, _ = af.center_of_mass_offset_m
+        px, py, pz = af.center_of_pressure_m
+        tx, ty, tz = torque_ext_body_nm
+        # drag moment p_cp x F_drag, plus thrust acting at the geometric centre, -com from the
+        # CoM: (-com) x (0, 0, -T) = (com_y T, -com_x T, 0)
+        torque_dist = (
+            py * dz - pz * dy + my * thrust + tx,
+            pz * dx - px * dz - mx * thrust + ty,
+            px * dy - py * dx + tz,
         )
-        com = af.center_of_mass_offset_m
-        # thrust acts at the geometric centre, -com from the CoM: (-com) x (0, 0, -T)
-        torque_com = (com[1] * thrust, -com[0] * thrust, 0.0)
-        torque_dist = add(add(cross(af.center_of_pressure_m, drag_body), torque_com), torque_ext_body_nm)
-        force_dist = add(quat.rotate(q, drag_body), force_ext_ned_n)
+        fx, fy, fz = force_ext_ned_n
+        gx, gy, gz = matvec(rot, (dx, dy, dz))
+        force_dist = (gx + fx, gy + fy, gz + fz)
 
-        # translational: specific force in body = (-T e3 + drag) / m + R^T F_ext / m
+        # translational: m r'' = m g e3 + R (-T e3 + drag) + F_ext
         inv_m = self._inv_mass
-        ext_body = quat.rotate_inverse(q, force_ext_ned_n)
-        sf_body = (
-            (drag_body[0] + ext_body[0]) * inv_m,
-            (drag_body[1] + ext_body[1]) * inv_m,
-            (drag_body[2] + ext_body[2] - thrust) * inv_m,
-        )
-        sf_ned = quat.rotate(q, sf_body)
-        g = self.vehicle.gravity_m_s2
-        vel = s.vel_ned_m_s
-        vel = (vel[0] + sf_ned[0] * dt_s, vel[1] + sf_ned[1] * dt_s, vel[2] + (sf_ned[2] + g) * dt_s)
-        pos = s.pos_ned_m
-        pos = (pos[0] + vel[0] * dt_s, pos[1] + vel[1] * dt_s, pos[2] + vel[2] * dt_s)
+        ex, ey, ez = mat_t_vec(rot, force_ext_ned_n)
+        sf_body = ((dx + ex) * inv_m, (dy + ey) * inv_m, (dz + ez - thrust) * inv_m)
+        ax, ay, az = matvec(rot, sf_body)
+        vx += ax * dt_s
+        vy += ay * dt_s
+        vz += (az + self.vehicle.gravity_m_s2) * dt_s
+        rx, ry, rz = s.pos_ned_m
+        pos = (rx + vx * dt_s, ry + vy * dt_s, rz + vz * dt_s)
+        vel = (vx, vy, vz)
 
         # rotational: J w' = tau - w x J w + h_tau
-        om = s.omega_rad_s
-        jw = mul(self._inertia, om)
-        tau = add(sub(torque_rot, cross(om, jw)), torque_dist)
-        ij = self._inv_inertia
-        om = (om[0] + ij[0] * tau[0] * dt_s, om[1] + ij[1] * tau[1] * dt_s, om[2] + ij[2] * tau[2] * dt_s)
+        o0, o1, o2 = s.omega_rad_s
+        j0, j1, j2 = self._inertia
+        i0, i1, i2 = self._inv_inertia
+        jw0, jw1, jw2 = j0 * o0, j1 * o1, j2 * o2
+        h0, h1, h2 = torque_dist
+        om = (
+            o0 + i0 * (t_rx - (o1 * jw2 - o2 * jw1) + h0) * dt_s,
+            o1 + i1 * (t_ry - (o2 * jw0 - o0 * jw2) + h1) * dt_s,
+            o2 + i2 * (t_rz - (o0 * jw1 - o1 * jw0) + h2) * dt_s,
+        )
         q = quat.integrate(q, om, dt_s)
+        w = (w1, w2, w3, w4)
+        torque_rot = (t_rx, t_ry, t_rz)
 
         pos, vel, q, om, sf_body = self._ground_contact(pos, vel, q, om, sf_body, thrust)
         self.state = RigidBodyState(pos, vel, q, om, w)
@@ -160,7 +171,7 @@ class Plant:
         missing lift in the specific force."""
         ground = self.airframe.ground_z_m
         below = pos[2] >= ground
-        if not (below is True or (type(below) is not bool and below.any())):  # type: ignore[union-attr]
+        if below is False or (type(below) is not bool and not below.any()):  # type: ignore[union-attr]
             return pos, vel, q, om, sf_body
         resting = below & (thrust < self.vehicle.weight_n) if type(below) is not bool else (
             below and thrust < self.vehicle.weight_n

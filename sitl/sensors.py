@@ -110,12 +110,13 @@ class Mocap:
         return fresh
 
     def _deliver(self, taken_s: float, pos: Vec3, q: Quat) -> MocapSample:
+        """Differentiate with the samples' own timestamps (they fall on the plant's time grid)."""
         prev = self._pos_prev
         self._pos_prev = pos
         if prev is None:
             self.latest = MocapSample(taken_s, pos, ZERO3, ZERO3, q)
             return self.latest
-        inv = 1.0 / self.period_s
+        inv = 1.0 / (taken_s - self.latest.time_s)
         av, aa = self._av, self._aa
         v0 = self.latest.vel_ned_m_s
         vel = tuple(v0[i] + av * ((pos[i] - prev[i]) * inv - v0[i]) for i in range(3))

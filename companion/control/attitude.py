@@ -26,7 +26,6 @@ from .vector import (
     Vec3,
     absolute,
     add,
-    cross,
     mul,
     sat,
     scale,
@@ -70,12 +69,12 @@ def feedback_vector_rate(q_err: Quat, omega_err_rad_s: Vec3) -> Vec3:
     eta = q_err[0]
     eps: Vec3 = (q_err[1], q_err[2], q_err[3])
     # e' = 2 (eta' eps + eta eps'), eta' = -1/2 eps.w, eps' = 1/2 (eta w + eps x w)
-    along = eps[0] * omega_err_rad_s[0] + eps[1] * omega_err_rad_s[1] + eps[2] * omega_err_rad_s[2]
-    ew = cross(eps, omega_err_rad_s)
+    w0, w1, w2 = omega_err_rad_s
+    along = eps[0] * w0 + eps[1] * w1 + eps[2] * w2
     return (
-        -eps[0] * along + eta * (eta * omega_err_rad_s[0] + ew[0]),
-        -eps[1] * along + eta * (eta * omega_err_rad_s[1] + ew[1]),
-        -eps[2] * along + eta * (eta * omega_err_rad_s[2] + ew[2]),
+        -eps[0] * along + eta * (eta * w0 + (eps[1] * w2 - eps[2] * w1)),
+        -eps[1] * along + eta * (eta * w1 + (eps[2] * w0 - eps[0] * w2)),
+        -eps[2] * along + eta * (eta * w2 + (eps[0] * w1 - eps[1] * w0)),
     )
 
 
@@ -111,15 +110,21 @@ def nominal_torque(
 
     ``(R~^T)' omega_d = -omega~ x (R~^T omega_d)`` because ``R~' = R~ S(omega~)``.
     """
-    ff = add(quat.rotate_inverse(err.q_err, omega_d_dot_rad_s2), cross(err.omega_d_body, err.omega_err))
-    e, e_dot = err.e, err.e_dot
-    acc = (
-        ff[0] - k_v * e_dot[0] - c * e[0],
-        ff[1] - k_v * e_dot[1] - c * e[1],
-        ff[2] - k_v * e_dot[2] - c * e[2],
+    a, b = err.omega_d_body, err.omega_err
+    # feed-forward: R~^T omega_d' + (R~^T omega_d) x omega~
+    ff0 = a[1] * b[2] - a[2] * b[1]
+    ff1 = a[2] * b[0] - a[0] * b[2]
+    ff2 = a[0] * b[1] - a[1] * b[0]
+    if omega_d_dot_rad_s2 is not ZERO3:
+        wd = quat.rotate_inverse(err.q_err, omega_d_dot_rad_s2)
+        ff0, ff1, ff2 = ff0 + wd[0], ff1 + wd[1], ff2 + wd[2]
+    e, e_dot, j, w = err.e, err.e_dot, inertia_kg_m2, omega_rad_s
+    jw0, jw1, jw2 = j[0] * w[0], j[1] * w[1], j[2] * w[2]
+    return (
+        j[0] * (ff0 - k_v * e_dot[0] - c * e[0]) + (w[1] * jw2 - w[2] * jw1),
+        j[1] * (ff1 - k_v * e_dot[1] - c * e[1]) + (w[2] * jw0 - w[0] * jw2),
+        j[2] * (ff2 - k_v * e_dot[2] - c * e[2]) + (w[0] * jw1 - w[1] * jw0),
     )
-    j_omega = mul(inertia_kg_m2, omega_rad_s)
-    return add(mul(inertia_kg_m2, acc), cross(omega_rad_s, j_omega))
 
 
 @dataclass
@@ -198,12 +203,25 @@ class AttitudeController:
         z = self.z
         s = add(s0, z)
         self.s = s
-        z_next = add(z, scale(c * dt_s, err.e))
-        if self.gains.anti_windup:
-            z_next = (
-                where(absolute(s[0]) > eps[0], -s0[0], z_next[0]),
-                where(absolute(s[1]) > eps[1], -s0[1], z_next[1]),
-                where(absolute(s[2]) > eps[2], -s0[2], z_next[2]),
-            )
-        self.z = z_next
+        self.z = _integrate_with_reset(z, s, s0, scale(c, err.e), eps, dt_s, self.gains.anti_windup)
         return mul(self._k_w, sat(s, eps))
+
+
+def _integrate_with_reset(z: Vec3, s: Vec3, s0: Vec3, z_dot: Vec3, eps: Vec3, dt_s: float, anti_windup: bool) -> Vec3:
+    """``z + z_dot dt``, except that an element whose ``|s| > eps`` is reset to ``-s0`` ([29]).
+
+    Shared by the attitude (11) and position (31) integral sliding modes.
+    """
+    if not anti_windup:
+        return (z[0] + z_dot[0] * dt_s, z[1] + z_dot[1] * dt_s, z[2] + z_dot[2] * dt_s)
+    if type(s[0]) is float:
+        return (
+            -s0[0] if abs(s[0]) > eps[0] else z[0] + z_dot[0] * dt_s,
+            -s0[1] if abs(s[1]) > eps[1] else z[1] + z_dot[1] * dt_s,
+            -s0[2] if abs(s[2]) > eps[2] else z[2] + z_dot[2] * dt_s,
+        )
+    return (
+        where(absolute(s[0]) > eps[0], -s0[0], z[0] + z_dot[0] * dt_s),
+        where(absolute(s[1]) > eps[1], -s0[1], z[1] + z_dot[1] * dt_s),
+        where(absolute(s[2]) > eps[2], -s0[2], z[2] + z_dot[2] * dt_s),
+    )

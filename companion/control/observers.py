@@ -15,10 +15,7 @@ from .vector import (
     ZERO3,
     Real,
     Vec3,
-    add,
-    cross,
     lowpass_alpha,
-    mul,
     scale,
     sub,
 )
@@ -79,15 +76,15 @@ class TorqueObserver:
         self._omega_prev = omega_rad_s
         if prev is None:
             return None
-        j = self.inertia_kg_m2
+        j, w, tau = self.inertia_kg_m2, omega_rad_s, torque_applied_prev_nm
         inv_dt = 1.0 / dt_s
-        omega_dot = (
-            (omega_rad_s[0] - prev[0]) * inv_dt,
-            (omega_rad_s[1] - prev[1]) * inv_dt,
-            (omega_rad_s[2] - prev[2]) * inv_dt,
+        jw0, jw1, jw2 = j[0] * w[0], j[1] * w[1], j[2] * w[2]
+        # J0 (w - w_prev) / dt - tau + w x J0 w
+        return (
+            j[0] * (w[0] - prev[0]) * inv_dt - tau[0] + (w[1] * jw2 - w[2] * jw1),
+            j[1] * (w[1] - prev[1]) * inv_dt - tau[1] + (w[2] * jw0 - w[0] * jw2),
+            j[2] * (w[2] - prev[2]) * inv_dt - tau[2] + (w[0] * jw1 - w[1] * jw0),
         )
-        gyroscopic = cross(omega_rad_s, mul(j, omega_rad_s))
-        return add(sub(mul(j, omega_dot), torque_applied_prev_nm), gyroscopic)
 
     def update(
         self, omega_rad_s: Vec3, torque_applied_prev_nm: Vec3, dt_s: float, model_torque_nm: Vec3 = ZERO3

@@ -123,8 +123,10 @@ class PositionGains:
     boundary_layer_m_s: Vec3 = (1.0, 1.0, 1.0)
     aibc_gamma_per_s: Vec3 = (4.0, 4.0, 2.0)
     """AIBC's velocity-based estimate h = gamma * velocity error."""
-    integral_limit_m_s: float = 2.0
-    """Bound on the PID/AIBC integral state times K_i, in m/s^2 (anti-windup)."""
+    integral_limit_m_s2: float = 20.0
+    """Bound on the PID/AIBC integral term K_i xi [m/s^2] (anti-windup). About 2 g: above the
+    9.5 m/s^2 that the 45 degree hover of E5 needs, so it stops wind-up without capping a
+    disturbance the vehicle could actually hold against."""
     anti_windup: bool = True
     observer_uses_imu: bool = True
     """Force DO from the accelerometer's specific force (else from differentiated position)."""

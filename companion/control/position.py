@@ -23,20 +23,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .attitude import _integrate_with_reset
 from .observers import ForceObserver
 from .params import PositionGains
 from .vector import (
     ZERO3,
     Real,
     Vec3,
-    absolute,
     add,
     clip,
     mul,
     sat,
     scale,
     sub,
-    where,
 )
 
 __all__ = [
@@ -160,10 +159,10 @@ class PositionController:
         return f
 
     def _integrate(self, pos_err_m: Vec3, k_i: Vec3, dt_s: float) -> Vec3:
-        """``K_i xi`` after one step, each element held within ``integral_limit_m_s`` (anti-windup)."""
+        """``K_i xi`` after one step, each element held within ``integral_limit_m_s2`` (anti-windup)."""
         xi = add(self.xi, scale(dt_s, pos_err_m))
         if self.gains.anti_windup:
-            lim = self.gains.integral_limit_m_s
+            lim = self.gains.integral_limit_m_s2
             xi = (
                 clip(xi[0], -lim / k_i[0], lim / k_i[0]),
                 clip(xi[1], -lim / k_i[1], lim / k_i[1]),
@@ -186,13 +185,6 @@ class PositionController:
         z = self.z
         s = add(s0, z)
         self.s = s
-        z_next = add(z, scale(dt_s, mul(self._k_p, pos_err_m)))
-        if self.gains.anti_windup:
-            z_next = (
-                where(absolute(s[0]) > eps[0], -s0[0], z_next[0]),
-                where(absolute(s[1]) > eps[1], -s0[1], z_next[1]),
-                where(absolute(s[2]) > eps[2], -s0[2], z_next[2]),
-            )
-        self.z = z_next
+        self.z = _integrate_with_reset(z, s, s0, mul(self._k_p, pos_err_m), eps, dt_s, self.gains.anti_windup)
         return mul(self._k_f, sat(s, eps))
 

@@ -73,7 +73,7 @@ def conj(q: Quat) -> Quat:
 
 
 def norm(q: Quat) -> Real:
-    return sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) ** 0.5
 
 
 def normalize(q: Quat) -> Quat:
@@ -102,8 +102,16 @@ def rotate(q: Quat, v: Vec3) -> Vec3:
 
 
 def rotate_inverse(q: Quat, v: Vec3) -> Vec3:
-    """``R(q)^T v``: an inertial vector expressed in the body frame."""
-    return rotate(conj(q), v)
+    """``R(q)^T v``: an inertial vector expressed in the body frame (``rotate`` by ``q^*``)."""
+    w, x, y, z = q
+    tx = 2.0 * (z * v[1] - y * v[2])
+    ty = 2.0 * (x * v[2] - z * v[0])
+    tz = 2.0 * (y * v[0] - x * v[1])
+    return (
+        v[0] + w * tx - (y * tz - z * ty),
+        v[1] + w * ty - (z * tx - x * tz),
+        v[2] + w * tz - (x * ty - y * tx),
+    )
 
 
 def to_rotmat(q: Quat) -> Mat3:
@@ -146,7 +154,13 @@ def _sin_half_over_angle(angle: Real) -> Real:
 
 def exp(phi: Vec3) -> Quat:
     """Unit quaternion of the rotation vector ``phi`` [rad]."""
-    angle = sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    angle = (phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]) ** 0.5
+    if type(angle) is float:  # one vehicle: skip the element-wise branches
+        if angle < 1e-4:
+            k = 0.5 - angle * angle / 48.0
+        else:
+            k = math.sin(0.5 * angle) / angle
+        return (math.cos(0.5 * angle), k * phi[0], k * phi[1], k * phi[2])
     k = _sin_half_over_angle(angle)
     return (cos(0.5 * angle), k * phi[0], k * phi[1], k * phi[2])
 
@@ -217,4 +231,12 @@ def integrate(q: Quat, omega_body_rad_s: Vec3, dt_s: Real) -> Quat:
     Renormalised every call so that the quaternion stays on the unit sphere however long it runs.
     """
     w = omega_body_rad_s
-    return normalize(mul(q, exp((w[0] * dt_s, w[1] * dt_s, w[2] * dt_s))))
+    d = exp((w[0] * dt_s, w[1] * dt_s, w[2] * dt_s))
+    qw, qx, qy, qz = q
+    dw, dx, dy, dz = d
+    rw = qw * dw - qx * dx - qy * dy - qz * dz
+    rx = qw * dx + qx * dw + qy * dz - qz * dy
+    ry = qw * dy - qx * dz + qy * dw + qz * dx
+    rz = qw * dz + qx * dy - qy * dx + qz * dw
+    n = (rw * rw + rx * rx + ry * ry + rz * rz) ** 0.5
+    return (rw / n, rx / n, ry / n, rz / n)

@@ -181,11 +181,19 @@ def cross(a: Vec3, b: Vec3) -> Vec3:
 
 
 def norm(a: Vec3) -> Real:
-    return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    # ** 0.5 is sqrt for floats and arrays alike, without a Python-level dispatch
+    return (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]) ** 0.5
 
 
 def sat(a: Vec3, width: Vec3) -> Vec3:
     """Element-wise ``sat(a / width)`` clipped to [-1, 1] (the boundary layer of (23))."""
+    if type(a[0]) is float:
+        u0, u1, u2 = a[0] / width[0], a[1] / width[1], a[2] / width[2]
+        return (
+            -1.0 if u0 < -1.0 else (1.0 if u0 > 1.0 else u0),
+            -1.0 if u1 < -1.0 else (1.0 if u1 > 1.0 else u1),
+            -1.0 if u2 < -1.0 else (1.0 if u2 > 1.0 else u2),
+        )
     return (
         clip(a[0] / width[0], -1.0, 1.0),
         clip(a[1] / width[1], -1.0, 1.0),
@@ -204,7 +212,13 @@ def clip_norm(a: Vec3, limit: Real) -> Vec3:
 
 
 def matvec(m: Mat3, v: Vec3) -> Vec3:
-    return (dot(m[0], v), dot(m[1], v), dot(m[2], v))
+    r0, r1, r2 = m
+    x, y, z = v
+    return (
+        r0[0] * x + r0[1] * y + r0[2] * z,
+        r1[0] * x + r1[1] * y + r1[2] * z,
+        r2[0] * x + r2[1] * y + r2[2] * z,
+    )
 
 
 def mat_t_vec(m: Mat3, v: Vec3) -> Vec3:

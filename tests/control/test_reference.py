@@ -1,0 +1,94 @@
+"""Reference generation (32)-(34) and the waypoint filter."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from companion.control import quaternion as quat
+from companion.control import vector as vec
+from companion.control.params import ReferenceParams, TrajectoryParams
+from companion.control.reference import RateReference, attitude_from_force, limit_force, thrust_quaternion
+from companion.control.trajectory import ReferenceFilter
+
+comp = st.floats(-20.0, 20.0, allow_nan=False)
+
+
+@given(comp, comp, st.floats(-20.0, -0.01))
+def test_thrust_quaternion_turns_hover_thrust_onto_the_force(fx, fy, fz):
+    f = (fx, fy, fz)
+    q = thrust_quaternion(f)
+    thrust_dir = quat.rotate(q, (0.0, 0.0, -1.0))
+    np.testing.assert_allclose(thrust_dir, vec.scale(1 / vec.norm(f), f), atol=1e-9)
+    assert abs(quat.norm(q) - 1) < 1e-12
+
+
+@given(comp, comp, st.floats(-20.0, -0.01), st.floats(-math.pi, math.pi))
+def test_yaw_is_the_angle_about_inertial_z(fx, fy, fz, yaw):
+    q, thrust = attitude_from_force((fx, fy, fz), yaw)
+    assert math.isclose(thrust, vec.norm((fx, fy, fz)))
+    np.testing.assert_allclose(quat.rotate(q, (0, 0, -1.0)), vec.scale(1 / thrust, (fx, fy, fz)), atol=1e-9)
+    # the body x axis, projected to the horizontal plane through q_f, points along yaw:
+    # undoing the tilt q_f leaves exactly q_psi
+    q_f = thrust_quaternion((fx, fy, fz))
+    q_psi = quat.mul(quat.conj(q_f), q)
+    assert quat.angle_between(q_psi, quat.from_yaw(yaw)) < 1e-9
+
+
+def test_straight_down_and_zero_force_are_made_safe():
+    """f = +e3 (thrust towards the ground) makes (32) singular: the limit keeps a minimum
+    upward component, so the attitude is level and the thrust the minimum, never NaN."""
+    for f in [(0.0, 0.0, 5.0), (0.0, 0.0, 0.0), (1e-12, 0.0, 3.0)]:
+        limited = limit_force(f, min_up_n=0.6, tilt_max_rad=math.radians(70))
+        q, thrust = attitude_from_force(limited, 0.0)
+        assert all(math.isfinite(c) for c in q)
+        assert math.isclose(thrust, 0.6, rel_tol=1e-6)
+        assert quat.tilt_angle(q) < 1e-6
+
+
+@given(comp, comp, st.floats(-20.0, 20.0))
+def test_force_limit_respects_tilt_and_keeps_direction(fx, fy, fz):
+    tilt_max = math.radians(50)
+    f = limit_force((fx, fy, fz), 0.5, tilt_max)
+    q, _ = attitude_from_force(f, 0.0)
+    assert quat.tilt_angle(q) <= tilt_max + 1e-9
+    assert -f[2] >= 0.5 - 1e-12
+    if math.hypot(fx, fy) > 1e-9:
+        # horizontal direction is kept
+        assert fx * f[1] - fy * f[0] == pytest.approx(0.0, abs=1e-9 * (abs(fx) + abs(fy) + 1))
+
+
+def test_rate_reference_recovers_a_constant_rotation():
+    """(34) on a reference turning at a constant body rate returns that rate (after the filter)."""
+    rr = RateReference(ReferenceParams())
+    w = (0.3, -0.5, 1.2)
+    q = quat.IDENTITY
+    for _ in range(100):
+        q = quat.integrate(q, w, 0.01)
+        out = rr.update(q, 0.01)
+    np.testing.assert_allclose(out, w, atol=1e-9)
+
+
+def test_rate_reference_never_exceeds_the_limit():
+    rr = RateReference(ReferenceParams(rate_filter_time_constant_s=0.0))
+    limit = math.radians(250)
+    rr.update(quat.IDENTITY, 0.01)
+    out = rr.update(quat.from_axis_angle((1.0, 0.0, 0.0), math.radians(170)), 0.01)
+    assert math.isclose(vec.norm(out), limit, rel_tol=1e-12)
+    assert out[0] > 0  # direction kept
+
+
+def test_reference_filter_respects_speed_and_acceleration_limits():
+    p = TrajectoryParams(max_speed_m_s=2.0, max_accel_m_s2=8.0)
+    rf = ReferenceFilter(p, (0.0, 0.0, -1.0))
+    speeds, accels = [], []
+    for _ in range(1000):
+        r = rf.update((10.0, 5.0, -3.0), math.radians(90), 0.01)
+        speeds.append(vec.norm(r.vel_ned_m_s))
+        accels.append(vec.norm(r.accel_ned_m_s2))
+    assert max(speeds) <= 2.0 + 1e-9
+    assert max(accels) <= 8.0 + 1e-9
+    np.testing.assert_allclose(r.pos_ned_m, (10.0, 5.0, -3.0), atol=1e-3)
+    assert math.isclose(r.yaw_rad, math.radians(90), abs_tol=1e-6)
