@@ -125,6 +125,9 @@ class Scenario:
     reference: ReferenceParams = field(default_factory=ReferenceParams)
     trajectory: TrajectoryParams = field(default_factory=TrajectoryParams)
     segments: tuple[Segment, ...] = ()
+    figure: str = "generic"
+    """which figure the experiment runner draws: step_force, chirp_torque, boxplot, waypoints,
+    suspended_weight or generic"""
 
     def __post_init__(self) -> None:
         ratio = self.plant_rate_hz / self.position_rate_hz

@@ -2,8 +2,8 @@
 
 The paper generates velocity and acceleration "by filtering the position between waypoints".
 :class:`ReferenceFilter` is a critically damped second-order filter on the target position
-whose acceleration and speed are limited in norm, so a jump to the next waypoint becomes a
-smooth reference with ``|v| <= max_speed_m_s``; yaw follows a rate-limited first-order filter.
+whose jerk, acceleration and speed are limited in norm, so a jump to the next waypoint becomes
+a smooth reference with ``|v| <= max_speed_m_s``; yaw follows a rate-limited first-order filter.
 """
 
 from __future__ import annotations
@@ -60,6 +60,9 @@ class ReferenceFilter:
             (w * w * d[0] - 2.0 * w * v[0], w * w * d[1] - 2.0 * w * v[1], w * w * d[2] - 2.0 * w * v[2]),
             p.max_accel_m_s2,
         )
+        a0 = self.accel_ned_m_s2
+        da = clip_norm((a_cmd[0] - a0[0], a_cmd[1] - a0[1], a_cmd[2] - a0[2]), p.max_jerk_m_s3 * dt_s)
+        a_cmd = (a0[0] + da[0], a0[1] + da[1], a0[2] + da[2])
         v_new = clip_norm((v[0] + a_cmd[0] * dt_s, v[1] + a_cmd[1] * dt_s, v[2] + a_cmd[2] * dt_s), p.max_speed_m_s)
         self.accel_ned_m_s2 = ((v_new[0] - v[0]) / dt_s, (v_new[1] - v[1]) / dt_s, (v_new[2] - v[2]) / dt_s)
         r = self.pos_ned_m
