@@ -32,6 +32,8 @@ from .airframe import AirframeParams
 
 __all__ = ["RigidBodyState", "Wrench", "Plant"]
 
+_new = tuple.__new__
+
 
 class RigidBodyState(NamedTuple):
     pos_ned_m: Vec3
@@ -130,13 +132,18 @@ class Plant:
         )
         fx, fy, fz = force_ext_ned_n
         gx, gy, gz = matvec(rot, (dx, dy, dz))
-        force_dist = (gx + fx, gy + fy, gz + fz)
+        hx, hy, hz = gx + fx, gy + fy, gz + fz  # lumped disturbance force h_f, NED
 
-        # translational: m r'' = m g e3 + R (-T e3 + drag) + F_ext
+        # translational: m r'' = m g e3 - T R e3 + h_f; R e3 is the third column of R
         inv_m = self._inv_mass
-        ex, ey, ez = mat_t_vec(rot, force_ext_ned_n)
-        sf_body = ((dx + ex) * inv_m, (dy + ey) * inv_m, (dz + ez - thrust) * inv_m)
-        ax, ay, az = matvec(rot, sf_body)
+        ax = (hx - thrust * rot[0][2]) * inv_m  # specific force, NED
+        ay = (hy - thrust * rot[1][2]) * inv_m
+        az = (hz - thrust * rot[2][2]) * inv_m
+        if force_ext_ned_n is ZERO3:  # the common case: no external force to take to body axes
+            sf_body = (dx * inv_m, dy * inv_m, (dz - thrust) * inv_m)
+        else:
+            ex, ey, ez = mat_t_vec(rot, force_ext_ned_n)
+            sf_body = ((dx + ex) * inv_m, (dy + ey) * inv_m, (dz + ez - thrust) * inv_m)
         vx += ax * dt_s
         vy += ay * dt_s
         vz += (az + self.vehicle.gravity_m_s2) * dt_s
@@ -159,9 +166,11 @@ class Plant:
         w = (w1, w2, w3, w4)
         torque_rot = (t_rx, t_ry, t_rz)
 
-        pos, vel, q, om, sf_body = self._ground_contact(pos, vel, q, om, sf_body, thrust)
-        self.state = RigidBodyState(pos, vel, q, om, w)
-        return Wrench(sf_body, thrust, torque_rot, force_dist, torque_dist)
+        if type(pos[2]) is not float or pos[2] >= af.ground_z_m:
+            pos, vel, q, om, sf_body = self._ground_contact(pos, vel, q, om, sf_body, thrust)
+        # tuple.__new__ skips the NamedTuples' Python-level __new__ (a measurable cost at 1 kHz)
+        self.state = _new(RigidBodyState, (pos, vel, q, om, w))
+        return _new(Wrench, (sf_body, thrust, torque_rot, (hx, hy, hz), torque_dist))
 
     def _ground_contact(
         self, pos: Vec3, vel: Vec3, q: Quat, om: Vec3, sf_body: Vec3, thrust: Real

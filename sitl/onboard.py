@@ -55,7 +55,7 @@ class AttitudeEstimator:
         A positive bias makes the estimate run ahead of the measurement, giving a negative error,
         so the bias estimate moves against the error.
         """
-        err = quat.log(quat.mul(quat.conj(self.q), q_measured))  # body-frame error [rad]
+        err = quat.log(quat.relative(self.q, q_measured))  # body-frame error [rad]
         k, kb = self.gains.attitude_gain, self.gains.bias_gain
         self.q = quat.normalize(quat.mul(self.q, quat.exp((k * err[0], k * err[1], k * err[2]))))
         b = self.gyro_bias

@@ -49,7 +49,7 @@ ATTITUDE_CONTROLLERS = ("pd", "pd_do", "ism_do")
 
 def attitude_error(q: Quat, q_d: Quat) -> Quat:
     """``q~ = q_d^* ⊗ q``: rotation from the desired frame D to the body frame B (5)."""
-    return quat.mul(quat.conj(q_d), q)
+    return quat.relative(q_d, q)
 
 
 def feedback_vector(q_err: Quat) -> Vec3:
@@ -93,9 +93,8 @@ class AttitudeError(NamedTuple):
     def of(q: Quat, omega_rad_s: Vec3, q_d: Quat, omega_d_rad_s: Vec3) -> AttitudeError:
         q_err = attitude_error(q, q_d)
         omega_err, omega_d_body = rate_error(q_err, omega_rad_s, omega_d_rad_s)
-        return AttitudeError(
-            q_err, feedback_vector(q_err), feedback_vector_rate(q_err, omega_err), omega_err, omega_d_body
-        )
+        fields = (q_err, feedback_vector(q_err), feedback_vector_rate(q_err, omega_err), omega_err, omega_d_body)
+        return tuple.__new__(AttitudeError, fields)  # skips NamedTuple's Python-level __new__
 
 
 def nominal_torque(
@@ -196,14 +195,15 @@ class AttitudeController:
         integrated, so the integral cannot wind up while the term saturates.
         """
         k_v, c, eps = self._k_v, self._c, self._eps
-        s0 = add(err.omega_err, scale(k_v, err.e))
+        w, e = err.omega_err, err.e
+        s0 = (w[0] + k_v * e[0], w[1] + k_v * e[1], w[2] + k_v * e[2])
         if not self._started:
             self.z = (-s0[0], -s0[1], -s0[2])  # z(0) = -s0(0): sliding from the first instant
             self._started = True
         z = self.z
-        s = add(s0, z)
+        s = (s0[0] + z[0], s0[1] + z[1], s0[2] + z[2])
         self.s = s
-        self.z = _integrate_with_reset(z, s, s0, scale(c, err.e), eps, dt_s, self.gains.anti_windup)
+        self.z = _integrate_with_reset(z, s, s0, (c * e[0], c * e[1], c * e[2]), eps, dt_s, self.gains.anti_windup)
         return mul(self._k_w, sat(s, eps))
 
 

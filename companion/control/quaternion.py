@@ -31,6 +31,7 @@ __all__ = [
     "Quat",
     "IDENTITY",
     "mul",
+    "relative",
     "conj",
     "normalize",
     "norm",
@@ -64,6 +65,18 @@ def mul(a: Quat, b: Quat) -> Quat:
         aw * bx + ax * bw + ay * bz - az * by,
         aw * by - ax * bz + ay * bw + az * bx,
         aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+def relative(a: Quat, b: Quat) -> Quat:
+    """``a^* ⊗ b``: the rotation from frame ``a`` to frame ``b`` (error (5), increments of (34))."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw + ax * bx + ay * by + az * bz,
+        aw * bx - ax * bw - ay * bz + az * by,
+        aw * by + ax * bz - ay * bw - az * bx,
+        aw * bz - ax * by + ay * bx - az * bw,
     )
 
 
@@ -219,7 +232,7 @@ def tilt_angle(q: Quat) -> Real:
 
 def angle_between(a: Quat, b: Quat) -> Real:
     """Rotation angle [rad] of ``a^* ⊗ b`` on the shortest arc, in [0, pi]."""
-    d = mul(conj(a), b)
+    d = relative(a, b)
     vn = sqrt(d[1] * d[1] + d[2] * d[2] + d[3] * d[3])
     w = d[0]
     return 2.0 * atan2(vn, where(w < 0.0, -w, w))
@@ -230,10 +243,14 @@ def integrate(q: Quat, omega_body_rad_s: Vec3, dt_s: Real) -> Quat:
 
     Renormalised every call so that the quaternion stays on the unit sphere however long it runs.
     """
-    w = omega_body_rad_s
-    d = exp((w[0] * dt_s, w[1] * dt_s, w[2] * dt_s))
+    px, py, pz = omega_body_rad_s[0] * dt_s, omega_body_rad_s[1] * dt_s, omega_body_rad_s[2] * dt_s
+    angle = (px * px + py * py + pz * pz) ** 0.5
+    if type(angle) is float:  # exp inlined: this runs twice per simulated millisecond
+        k = 0.5 - angle * angle / 48.0 if angle < 1e-4 else math.sin(0.5 * angle) / angle
+        dw, dx, dy, dz = math.cos(0.5 * angle), k * px, k * py, k * pz
+    else:
+        dw, dx, dy, dz = exp((px, py, pz))
     qw, qx, qy, qz = q
-    dw, dx, dy, dz = d
     rw = qw * dw - qx * dx - qy * dy - qz * dz
     rx = qw * dx + qx * dw + qy * dz - qz * dy
     ry = qw * dy - qx * dz + qy * dw + qz * dx

@@ -89,7 +89,7 @@ class RateReference:
         self._q_prev = q_d
         if prev is None:
             return self.omega_d
-        delta = quat.log(quat.mul(quat.conj(prev), q_d))
+        delta = quat.log(quat.relative(prev, q_d))
         raw = (delta[0] / dt_s, delta[1] / dt_s, delta[2] / dt_s)
         tc = self.params.rate_filter_time_constant_s
         if tc > 0.0:

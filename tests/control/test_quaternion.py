@@ -112,3 +112,8 @@ def test_batch_components_give_the_same_numbers_as_floats():
     for i in range(50):
         one = quat.integrate(tuple(float(c) for c in qs[:, i]), tuple(float(c) for c in ws[:, i]), 0.01)
         np.testing.assert_allclose([c[i] for c in batch], one, rtol=0, atol=1e-15)
+
+
+@given(quaternions, quaternions)
+def test_relative_is_conjugate_product(a, b):
+    np.testing.assert_allclose(quat.relative(a, b), quat.mul(quat.conj(a), b), atol=1e-15)
