@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 OUT ?= results
 
-.PHONY: setup demo experiments test bench clean
+.PHONY: setup demo experiments test lint bench clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,8 +19,12 @@ demo: experiments
 experiments: setup
 	$(PY) -m sitl.experiments all --out $(OUT)
 
-test: setup
+test: setup lint
 	$(PY) -m pytest -q
+
+lint: setup
+	$(VENV)/bin/ruff check companion sitl tests benchmarks
+	$(VENV)/bin/mypy companion/control
 
 bench: setup
 	$(PY) benchmarks/bench_simulation.py

@@ -154,7 +154,8 @@ class Simulation:
         sc = self.scenario
         steps = int(round((duration_s or sc.duration_s) / self.dt))
         dt = self.dt
-        plant, imu, mocap, wind, est, onboard = self.plant, self.imu, self.mocap, self.wind, self.estimator, self.onboard
+        plant, imu, mocap, wind = self.plant, self.imu, self.mocap, self.wind
+        est, onboard = self.estimator, self.onboard
         forces, torques = sc.forces, sc.torques
         rows: list[tuple[object, ...]] = []
         wrench = None

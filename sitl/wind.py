@@ -84,7 +84,10 @@ def _first_order(dt: float, tc: float) -> tuple[float, float]:
     return a, math.sqrt(1.0 - a * a)
 
 
-def _second_order(dt: float, tc: float) -> tuple[tuple[float, float, float, float, float], tuple[float, float], np.ndarray]:
+_Coeffs = tuple[float, float, float, float, float]
+
+
+def _second_order(dt: float, tc: float) -> tuple[_Coeffs, tuple[float, float], np.ndarray]:
     """Exact discretisation of ``x1' = (n - x1)/T``, ``x2' = (x1 - x2)/T``, output
     ``y = sqrt(3) x1 + (1 - sqrt(3)) x2``, i.e. ``(1 + sqrt(3) T s) / (1 + T s)^2`` n.
 

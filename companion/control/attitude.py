@@ -25,10 +25,8 @@ from .vector import (
     Real,
     Vec3,
     absolute,
-    add,
     mul,
     sat,
-    scale,
     sub,
     where,
 )
@@ -214,11 +212,11 @@ def _integrate_with_reset(z: Vec3, s: Vec3, s0: Vec3, z_dot: Vec3, eps: Vec3, dt
     """
     if not anti_windup:
         return (z[0] + z_dot[0] * dt_s, z[1] + z_dot[1] * dt_s, z[2] + z_dot[2] * dt_s)
-    if type(s[0]) is float:
+    if type(s[0]) is float:  # one vehicle: plain comparisons instead of where()
         return (
-            -s0[0] if abs(s[0]) > eps[0] else z[0] + z_dot[0] * dt_s,
-            -s0[1] if abs(s[1]) > eps[1] else z[1] + z_dot[1] * dt_s,
-            -s0[2] if abs(s[2]) > eps[2] else z[2] + z_dot[2] * dt_s,
+            -s0[0] if abs(s[0]) > eps[0] else z[0] + z_dot[0] * dt_s,  # type: ignore[operator]
+            -s0[1] if abs(s[1]) > eps[1] else z[1] + z_dot[1] * dt_s,  # type: ignore[operator]
+            -s0[2] if abs(s[2]) > eps[2] else z[2] + z_dot[2] * dt_s,  # type: ignore[operator]
         )
     return (
         where(absolute(s[0]) > eps[0], -s0[0], z[0] + z_dot[0] * dt_s),

@@ -260,5 +260,5 @@ def attitude_stability_margin(gains: AttitudeGains, vehicle: VehicleParams) -> f
     """``4 lambda_min(K) lambda_min(Gamma)`` of (25); the loop is stable in the layer when > 1."""
     j = vehicle.inertia_kg_m2
     k_min = min(gains.sliding_gain_rad_s[i] * j[i] for i in range(3))
-    return 4.0 * k_min * min(gains.observer_gain_rad_s)
+    return float(4.0 * k_min * min(float(g) for g in gains.observer_gain_rad_s))
 

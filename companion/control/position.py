@@ -114,7 +114,7 @@ class PositionController:
         self._k_v, self._k_p, self._k_i = g.k_v(), g.k_p(), g.k_i()
         self.observer = ForceObserver(self.mass_kg, g.observer_gain_rad_s)
         if self.kind == "aibc":
-            coeffs = [aibc_coefficients(w) for w in g.omega_c_rad_s]
+            coeffs = [aibc_coefficients(float(w)) for w in g.omega_c_rad_s]
             c1 = tuple(c[0] for c in coeffs)
             c2 = tuple(c[1] for c in coeffs)
             lam = tuple(c[2] for c in coeffs)

@@ -143,6 +143,7 @@ def to_rotmat(q: Quat) -> Mat3:
 def from_rotmat(m: Mat3) -> Quat:
     """Unit quaternion (``w >= 0``) of a rotation matrix; float form only (used at the edges)."""
     tr = m[0][0] + m[1][1] + m[2][2]
+    q: Quat
     if tr > 0.0:
         s = math.sqrt(tr + 1.0) * 2.0
         q = (0.25 * s, (m[2][1] - m[1][2]) / s, (m[0][2] - m[2][0]) / s, (m[1][0] - m[0][1]) / s)
@@ -169,11 +170,8 @@ def exp(phi: Vec3) -> Quat:
     """Unit quaternion of the rotation vector ``phi`` [rad]."""
     angle = (phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]) ** 0.5
     if type(angle) is float:  # one vehicle: skip the element-wise branches
-        if angle < 1e-4:
-            k = 0.5 - angle * angle / 48.0
-        else:
-            k = math.sin(0.5 * angle) / angle
-        return (math.cos(0.5 * angle), k * phi[0], k * phi[1], k * phi[2])
+        kf = 0.5 - angle * angle / 48.0 if angle < 1e-4 else math.sin(0.5 * angle) / angle
+        return (math.cos(0.5 * angle), kf * phi[0], kf * phi[1], kf * phi[2])
     k = _sin_half_over_angle(angle)
     return (cos(0.5 * angle), k * phi[0], k * phi[1], k * phi[2])
 
@@ -245,6 +243,10 @@ def integrate(q: Quat, omega_body_rad_s: Vec3, dt_s: Real) -> Quat:
     """
     px, py, pz = omega_body_rad_s[0] * dt_s, omega_body_rad_s[1] * dt_s, omega_body_rad_s[2] * dt_s
     angle = (px * px + py * py + pz * pz) ** 0.5
+    dw: Real
+    dx: Real
+    dy: Real
+    dz: Real
     if type(angle) is float:  # exp inlined: this runs twice per simulated millisecond
         k = 0.5 - angle * angle / 48.0 if angle < 1e-4 else math.sin(0.5 * angle) / angle
         dw, dx, dy, dz = math.cos(0.5 * angle), k * px, k * py, k * pz

@@ -15,7 +15,7 @@ element-wise in the batch form.
 from __future__ import annotations
 
 import math
-from typing import Union
+from typing import Sequence, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,7 +101,7 @@ def asin(x: Real) -> Real:
 
 
 def absolute(x: Real) -> Real:
-    return np.abs(x) if type(x) is _ndarray else abs(x)
+    return np.abs(x) if type(x) is _ndarray else abs(x)  # type: ignore[return-value]
 
 
 def minimum(a: Real, b: Real) -> Real:
@@ -137,9 +137,9 @@ def where(cond: bool | NDArray[np.bool_], a: Real, b: Real) -> Real:
 # --- vectors -------------------------------------------------------------------------
 
 
-def as_vec3(v: object) -> Vec3:
+def as_vec3(v: Sequence[float]) -> Vec3:
     """A 3-tuple of floats from any 3-element sequence (the edge between I/O and the core)."""
-    x, y, z = v  # type: ignore[misc]
+    x, y, z = v
     return (float(x), float(y), float(z))
 
 

@@ -42,7 +42,10 @@ def test_hover_force_is_the_weight_upwards(kind):
     np.testing.assert_allclose(f, hover, atol=1e-12)
 
 
-def point_mass(kind, force_n, seconds=20.0, dt=0.01, gains=PositionGains(), m=0.63):
+DEFAULT_GAINS = PositionGains()
+
+
+def point_mass(kind, force_n, seconds=20.0, dt=0.01, gains=DEFAULT_GAINS, m=0.63):
     """m r'' = m g e3 + f + h along x only (ideal actuator, accelerometer without noise)."""
     ctrl = PositionController(kind, gains, m)
     x = v = 0.0
