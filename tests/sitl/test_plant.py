@@ -108,3 +108,18 @@ def test_batch_reproduces_single_vehicle_runs():
         np.testing.assert_allclose(batch.vehicle(i)["x"], one["x"], rtol=0, atol=1e-12)
         np.testing.assert_allclose(batch.vehicle(i)["htx_hat"], one["htx_hat"], rtol=0, atol=1e-12)
     _ = quat
+
+
+def test_heavier_plant_is_seen_as_a_downward_force_by_the_observer():
+    """The plant is 30% heavier than the controller's model: the force DO must attribute
+    (m - m0) g = 0.3 * 0.63 * 9.81 = 1.85 N downwards to disturbance and hold altitude;
+    PD without DO would sag by 1.85 / (m0 K_p) = 1.3 m instead."""
+    from sitl.scenario import ModelError
+
+    sc = Scenario(name="heavy", duration_s=10.0, model_error=ModelError(mass_factor=1.3))
+    log = simulate(sc, "pd_do", "ism_do", 1)
+    late = log.t > 8.0
+    expected = 0.3 * 0.63 * 9.81
+    assert math.isclose(log["hfz_hat"][late].mean(), expected, rel_tol=0.03)
+    # the residual offset is the accelerometer bias seen as a force: |b| m0 / (m0 K_p) < 3 cm
+    assert abs((log["z"] - log["z_ref"])[late].mean()) < 0.03
