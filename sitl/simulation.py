@@ -20,14 +20,9 @@ from numpy.typing import NDArray
 from companion.control import quaternion as quat
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
 from companion.control.trajectory import PositionReference, ReferenceFilter
-from companion.control.vector import Vec3
 
-from .disturbances import evaluate
-from .dynamics import Plant, RigidBodyState
-from .onboard import AttitudeEstimator, OnboardAttitudeLoop
 from .scenario import Scenario
-from .sensors import Imu, Mocap
-from .wind import Wind
+from .vehicle import SimVehicle
 
 __all__ = ["LOG_COLUMNS", "FlightLog", "Simulation", "simulate"]
 
@@ -87,45 +82,25 @@ class FlightLog:
         np.savetxt(path, data, delimiter=",", header=",".join(LOG_COLUMNS), comments="", fmt="%.7g")
 
 
-def _batched(x: object, n: int) -> object:
-    """Broadcast the components of nested tuples of floats to arrays of length n."""
-    if isinstance(x, tuple):
-        return tuple(_batched(v, n) for v in x)
-    return np.full(n, float(x))  # type: ignore[arg-type]
-
-
 class Simulation:
+    """A :class:`~sitl.vehicle.SimVehicle` flown by the position loop of the control core."""
+
     def __init__(self, scenario: Scenario, position: str, attitude: str, seeds: int | Sequence[int]) -> None:
         self.scenario = sc = scenario
         self.position_kind, self.attitude_kind = position, attitude
-        self.batch = not isinstance(seeds, (int, np.integer))
-        self.seeds: int | tuple[int, ...] = tuple(int(s) for s in seeds) if self.batch else int(seeds)  # type: ignore[union-attr]
-        n = len(self.seeds) if isinstance(self.seeds, tuple) else 1
-        self.n = n
-        self.dt = 1.0 / sc.plant_rate_hz
+        pos0, yaw0 = sc.setpoint.target_at(0.0)
+        self.vehicle = SimVehicle(sc, attitude, seeds, pos0, yaw0, hovering=True)
+        self.batch, self.seeds, self.n = self.vehicle.batch, self.vehicle.seeds, self.vehicle.n
+        self.dt = self.vehicle.dt
         self.pos_div = int(round(sc.plant_rate_hz / sc.position_rate_hz))
         self.pos_dt = self.pos_div * self.dt
         self.log_div = max(1, int(round(sc.plant_rate_hz / sc.log_rate_hz)))
-
-        pos0, yaw0 = sc.setpoint.target_at(0.0)
-        plant = Plant.at_rest(sc.plant_vehicle, sc.airframe, pos0, yaw0, hovering=True)
-        if self.batch:
-            plant.state = RigidBodyState(*_batched(tuple(plant.state), n))  # type: ignore[arg-type]
-        self.plant = plant
-        self.imu = Imu(sc.sensors, self.seeds)
-        self.mocap = Mocap(sc.sensors, self.seeds, plant.state)
-        self.wind = Wind(sc.wind, self.seeds, self.dt)
-        self.estimator = AttitudeEstimator(sc.estimator, plant.state.q)
-        self.onboard = OnboardAttitudeLoop.create(attitude, sc.vehicle, sc.attitude, sc.airframe.rotor_command_levels)
         self.outer = PositionLoop.create(position, sc.vehicle, sc.position, sc.reference)
         hover = sc.vehicle.weight_n
         self.outer.thrust_n = hover
-        self.setpoint = AttitudeSetpoint(plant.state.q, (0.0, 0.0, 0.0), hover)
+        self.setpoint = AttitudeSetpoint(self.vehicle.state.q, (0.0, 0.0, 0.0), hover)
         self.ref_filter = ReferenceFilter(sc.trajectory, pos0, yaw0) if sc.setpoint.waypoints else None
         self.ref = PositionReference(pos0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), yaw0)
-        self._gyro = (0.0, 0.0, 0.0)
-        self._sf_sum = [0.0, 0.0, 0.0]
-        self._sf_count = 0
 
     def _reference(self, t: float) -> PositionReference:
         target, yaw = self.scenario.setpoint.target_at(t)
@@ -134,64 +109,42 @@ class Simulation:
         return self.ref_filter.update(target, yaw, self.pos_dt)
 
     def _position_step(self, t: float) -> None:
-        sc = self.scenario
-        ms = self.mocap.latest
-        q_est = self.estimator.q
+        sc, v = self.scenario, self.vehicle
+        ms = v.tracked
+        q_est = v.estimator.q
+        sf_body = v.mean_specific_force_body()
         if sc.position.observer_uses_imu:
-            k = 1.0 / max(self._sf_count, 1)
-            s = self._sf_sum
-            sf_ned = quat.rotate(q_est, (s[0] * k, s[1] * k, s[2] * k))
+            sf_ned = quat.rotate(q_est, sf_body)
         else:
             a = ms.accel_ned_m_s2
             sf_ned = (a[0], a[1], a[2] - sc.vehicle.gravity_m_s2)
-        self._sf_sum = [0.0, 0.0, 0.0]
-        self._sf_count = 0
         self.ref = self._reference(t)
         meas = PositionMeasurement(ms.pos_ned_m, ms.vel_ned_m_s, q_est, sf_ned)
         self.setpoint = self.outer.update(meas, self.ref, self.pos_dt)
 
     def run(self, duration_s: float | None = None) -> FlightLog:
-        sc = self.scenario
-        steps = int(round((duration_s or sc.duration_s) / self.dt))
-        dt = self.dt
-        plant, imu, mocap, wind = self.plant, self.imu, self.mocap, self.wind
-        est, onboard = self.estimator, self.onboard
-        forces, torques = sc.forces, sc.torques
+        steps = int(round((duration_s or self.scenario.duration_s) / self.dt))
+        vehicle = self.vehicle
         rows: list[tuple[object, ...]] = []
-        wrench = None
         for k in range(steps):
-            t = k * dt
             if k % self.pos_div == 0:
-                self._position_step(t)
-            omega = est.predict(self._gyro, dt)
-            cmd = onboard.update(est.q, omega, self.setpoint, dt)
-            wind_ned = wind.step()
-            wrench = plant.step(cmd, wind_ned, evaluate(forces, t), evaluate(torques, t), dt)
-            sample = imu.sample(plant.state, wrench)
-            self._gyro = sample.gyro_rad_s
-            sf = sample.specific_force_body_m_s2
-            acc = self._sf_sum
-            acc[0] += sf[0]
-            acc[1] += sf[1]
-            acc[2] += sf[2]
-            self._sf_count += 1
-            tracked = mocap.update(t + dt, plant.state)
-            if tracked is not None:
-                est.correct(tracked.q)
+                self._position_step(vehicle.t)
+            vehicle.step(self.setpoint)
             if k % self.log_div == 0:
-                rows.append(self._row(t + dt, wrench, wind_ned))
+                rows.append(self._row(vehicle.t))
         return self._log(rows)
 
-    def _row(self, t: float, wrench: object, wind_ned: Vec3) -> tuple[object, ...]:
-        s = self.plant.state
-        ref, sp, outer, att = self.ref, self.setpoint, self.outer, self.onboard.controller
+    def _row(self, t: float) -> tuple[object, ...]:
+        v = self.vehicle
+        s, wrench = v.state, v.wrench
+        ref, sp, outer, att = self.ref, self.setpoint, self.outer, v.onboard.controller
         ctrl = outer.controller
         return (
             t, *s.pos_ned_m, *s.vel_ned_m_s, *ref.pos_ned_m, *ref.vel_ned_m_s, ref.yaw_rad,
             *s.q, *sp.q_d, *s.omega_rad_s, *sp.omega_d_rad_s, sp.thrust_n, *outer.force_n,
-            *ctrl.estimate_n, *wrench.disturbance_force_ned_n,  # type: ignore[attr-defined]
-            *att.disturbance_estimate_nm, *wrench.disturbance_torque_nm,  # type: ignore[attr-defined]
-            *att.s, *ctrl.s, *wind_ned,
+            *ctrl.estimate_n, *wrench.disturbance_force_ned_n,  # type: ignore[union-attr]
+            *att.disturbance_estimate_nm, *wrench.disturbance_torque_nm,  # type: ignore[union-attr]
+            *att.s, *ctrl.s, *v.wind_ned,
         )
 
     def _log(self, rows: list[tuple[object, ...]]) -> FlightLog:
