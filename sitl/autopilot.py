@@ -1,0 +1,524 @@
+"""The simulated vehicle's autopilot: PX4-like modes, arming, take-off, landing, offboard, failsafe.
+
+Pure logic over a :class:`~sitl.vehicle.SimVehicle`; no sockets, no clock. The MAVLink edge
+(:mod:`sitl.mavlink_server`) decodes messages into the calls below and encodes the state back.
+
+Rules, as PX4 has them (../shared/MAVLINK.md):
+
+- arming needs the vehicle on the ground; disarming in the air needs the force code 21196;
+  armed but never lifted off for ``disarm_preflight_s`` disarms, as does ``disarm_land_s`` after
+  touch-down;
+- take-off climbs to ``takeoff_alt_m`` above home at ``takeoff_speed_m_s`` and then holds;
+  land descends at ``land_speed_m_s`` and disarms on the ground; RTL flies home, then lands;
+- a SET_ATTITUDE_TARGET counts as proof of life in any mode but is flown only in OFFBOARD;
+  switching to OFFBOARD needs a live stream (at least ``offboard_min_rate_hz`` over the last
+  second, the last within the loss timeout); in OFFBOARD only the system that switched to it
+  may steer;
+- **offboard-loss failsafe**: no setpoint for ``offboard_loss_timeout_s`` -> HOLD at the current
+  position; still nothing after ``failsafe_hold_s`` more -> LAND, then disarm. An explicit mode
+  change by the operator ends the failsafe.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from companion.control import quaternion as quat
+from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
+from companion.control.trajectory import ReferenceFilter
+from companion.control.vector import ZERO3, Vec3
+
+from .vehicle import SimVehicle
+
+__all__ = [
+    "Mode",
+    "LandedState",
+    "MavResult",
+    "Severity",
+    "AutopilotParams",
+    "CommandResult",
+    "Autopilot",
+]
+
+
+class Mode(enum.Enum):
+    """PX4 custom modes, value ``(main, sub)``; ``custom_mode = main << 16 | sub << 24``."""
+
+    MANUAL = (1, 0)
+    ALTCTL = (2, 0)
+    POSCTL = (3, 0)
+    TAKEOFF = (4, 2)
+    HOLD = (4, 3)
+    MISSION = (4, 4)
+    RTL = (4, 5)
+    LAND = (4, 6)
+    OFFBOARD = (6, 0)
+
+    @property
+    def custom_mode(self) -> int:
+        main, sub = self.value
+        return (main << 16) | (sub << 24)
+
+    @classmethod
+    def from_main_sub(cls, main: int, sub: int) -> Mode | None:
+        for m in cls:
+            if m.value == (main, sub):
+                return m
+        return None
+
+
+class LandedState(enum.IntEnum):
+    """MAV_LANDED_STATE"""
+
+    UNDEFINED = 0
+    ON_GROUND = 1
+    IN_AIR = 2
+    TAKEOFF = 3
+    LANDING = 4
+
+
+class MavResult(enum.IntEnum):
+    ACCEPTED = 0
+    TEMPORARILY_REJECTED = 1
+    DENIED = 2
+    UNSUPPORTED = 3
+    FAILED = 4
+
+
+class Severity(enum.IntEnum):
+    """MAV_SEVERITY"""
+
+    CRITICAL = 2
+    ERROR = 3
+    WARNING = 4
+    NOTICE = 5
+    INFO = 6
+
+
+@dataclass(frozen=True)
+class AutopilotParams:
+    """Behaviour of the firmware, named after PX4's parameters where one exists."""
+
+    offboard_loss_timeout_s: float = 1.0
+    """COM_OF_LOSS_T"""
+    failsafe_hold_s: float = 5.0
+    """COM_FAIL_ACT_T: hold this long after offboard loss, then land"""
+    offboard_min_rate_hz: float = 2.0
+    takeoff_alt_m: float = 2.5
+    """MIS_TAKEOFF_ALT"""
+    takeoff_speed_m_s: float = 1.5
+    """MPC_TKO_SPEED"""
+    land_speed_m_s: float = 0.7
+    """MPC_LAND_SPEED"""
+    disarm_preflight_s: float = 10.0
+    """COM_DISARM_PRFLT"""
+    disarm_land_s: float = 2.0
+    """COM_DISARM_LAND"""
+    max_rate_setpoint_rad_s: float = math.radians(2000.0)
+    """body-rate setpoints beyond this are rejected as out of range"""
+    strict_px4: bool = False
+    """PX4's either/or rule: with an attitude, only the yaw rate is used as feed-forward"""
+    hold_controller: str = "ism_do"
+    """position controller of the firmware's own hold, take-off and landing"""
+
+
+class CommandResult(NamedTuple):
+    result: MavResult
+    reason: str = ""
+
+
+MAV_CMD_NAV_LOITER_UNLIM = 17
+MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
+MAV_CMD_NAV_LAND = 21
+MAV_CMD_NAV_TAKEOFF = 22
+MAV_CMD_DO_SET_MODE = 176
+MAV_CMD_COMPONENT_ARM_DISARM = 400
+FORCE_DISARM = 21196.0
+
+_POSITION_MODES = (Mode.HOLD, Mode.TAKEOFF, Mode.LAND, Mode.RTL)
+
+
+class Autopilot:
+    """Modes, arming and setpoints around one :class:`SimVehicle`; call :meth:`step` at the
+    plant rate."""
+
+    def __init__(self, vehicle: SimVehicle, params: AutopilotParams | None = None) -> None:
+        self.vehicle = vehicle
+        self.params = params or AutopilotParams()
+        sc = vehicle.scenario
+        self.dt = vehicle.dt
+        self.pos_div = int(round(sc.plant_rate_hz / sc.position_rate_hz))
+        self.pos_dt = self.pos_div * self.dt
+        self.ground_z = sc.airframe.ground_z_m
+        self.mode = Mode.HOLD
+        self.armed = False
+        self.landed = True
+        self.arm_time = 0.0
+        self.home: Vec3 = vehicle.state.pos_ned_m
+        self.home_yaw = 0.0
+        self.lifted_off = False
+        self.touchdown_time: float | None = None
+        self.failsafe: str | None = None
+        self.failsafe_time = 0.0
+        self.messages: deque[tuple[Severity, str]] = deque(maxlen=32)
+        self.rejected: dict[str, int] = {}
+        """counts of rejected inputs by reason (setpoints, commands), for tests and reports"""
+
+        self.setpoint_times: deque[float] = deque(maxlen=64)
+        self.last_setpoint_time = -math.inf
+        self.offboard_owner: int | None = None
+        self.offboard_attitude: AttitudeSetpoint | None = None
+        self.offboard_uses_attitude = True
+        self.offboard_position: tuple[Vec3, float] | None = None
+
+        self.position_loop = PositionLoop.create(self.params.hold_controller, sc.vehicle, sc.position, sc.reference)
+        self.ref_filter = ReferenceFilter(sc.trajectory, vehicle.state.pos_ned_m)
+        self.target: Vec3 = vehicle.state.pos_ned_m
+        self.target_yaw = 0.0
+        self.setpoint = self._idle_setpoint()
+        self._k = 0
+        self._land_phase_home = False
+        vehicle.motors_on = False
+
+    # --- events --------------------------------------------------------------------------
+
+    def _say(self, severity: Severity, text: str) -> None:
+        self.messages.append((severity, text[:50]))
+
+    def _reject(self, reason: str) -> None:
+        self.rejected[reason] = self.rejected.get(reason, 0) + 1
+
+    @property
+    def t(self) -> float:
+        return self.vehicle.t
+
+    # --- commands ------------------------------------------------------------------------
+
+    def command(self, command: int, params: tuple[float, ...], sender: int = 255) -> CommandResult:
+        """COMMAND_LONG semantics; every call is idempotent (MAVSDK retries)."""
+        p = tuple(params) + (math.nan,) * (7 - len(params))
+        if command == MAV_CMD_COMPONENT_ARM_DISARM:
+            return self._arm_disarm(p[0], p[1])
+        if command == MAV_CMD_NAV_TAKEOFF:
+            return self._takeoff(p[6])
+        if command == MAV_CMD_NAV_LAND:
+            return self.set_mode(Mode.LAND, sender)
+        if command == MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            return self.set_mode(Mode.RTL, sender)
+        if command == MAV_CMD_NAV_LOITER_UNLIM:
+            return self.set_mode(Mode.HOLD, sender)
+        if command == MAV_CMD_DO_SET_MODE:
+            if not (math.isfinite(p[0]) and math.isfinite(p[1]) and math.isfinite(p[2])):
+                return self._deny("mode change: non-finite parameters")
+            if not int(p[0]) & 1:
+                return self._deny("mode change: base mode lacks the custom flag")
+            mode = Mode.from_main_sub(int(p[1]), int(p[2]))
+            if mode is None:
+                return self._deny(f"mode change: unknown mode {int(p[1])}/{int(p[2])}")
+            return self.set_mode(mode, sender)
+        self._reject("unsupported command")
+        return CommandResult(MavResult.UNSUPPORTED, f"command {command} not supported")
+
+    def _deny(self, reason: str, result: MavResult = MavResult.DENIED) -> CommandResult:
+        self._reject(reason.split(":")[0])
+        self._say(Severity.WARNING, reason)
+        return CommandResult(result, reason)
+
+    def _arm_disarm(self, arm: float, force: float) -> CommandResult:
+        if arm == 1.0:
+            if self.armed:
+                return CommandResult(MavResult.ACCEPTED)
+            if not self.landed:
+                return self._deny("Arming denied: not on the ground")
+            if self.t < 1.0:
+                return self._deny("Arming denied: estimator settling", MavResult.TEMPORARILY_REJECTED)
+            self.armed = True
+            self.arm_time = self.t
+            self.lifted_off = False
+            self.home = self.vehicle.tracked.pos_ned_m
+            self.home_yaw = float(quat.to_euler(self.vehicle.estimator.q)[2])
+            self.vehicle.motors_on = True
+            self._reset_controllers()
+            self._say(Severity.INFO, "Armed")
+            return CommandResult(MavResult.ACCEPTED)
+        if arm == 0.0:
+            if not self.armed:
+                return CommandResult(MavResult.ACCEPTED)
+            if not self.landed and force != FORCE_DISARM:
+                return self._deny("Disarming denied: in the air")
+            self._disarm("Disarmed" if self.landed else "Disarmed in the air (forced)")
+            return CommandResult(MavResult.ACCEPTED)
+        return self._deny(f"Arm/disarm: invalid param1 {arm!r}")
+
+    def _disarm(self, text: str) -> None:
+        self.armed = False
+        self.vehicle.motors_on = False
+        self.failsafe = None
+        if self.mode in (Mode.LAND, Mode.TAKEOFF, Mode.RTL, Mode.OFFBOARD):
+            self.mode = Mode.HOLD
+        self._say(Severity.INFO, text)
+
+    def _takeoff(self, altitude_amsl_m: float) -> CommandResult:
+        if not self.armed:
+            return self._deny("Takeoff denied: disarmed")
+        alt = self.params.takeoff_alt_m
+        if math.isfinite(altitude_amsl_m):
+            alt = altitude_amsl_m - self.origin_alt_m
+            if not 0.5 <= alt <= 100.0:
+                return self._deny(f"Takeoff denied: altitude {alt:.1f} m above home")
+        if self.mode == Mode.TAKEOFF:
+            return CommandResult(MavResult.ACCEPTED)
+        self.takeoff_alt_m = alt
+        self._enter(Mode.TAKEOFF)
+        return CommandResult(MavResult.ACCEPTED)
+
+    origin_alt_m = 488.0
+    """AMSL altitude of the local origin (set by the server from its geodetic origin)"""
+    takeoff_alt_m = AutopilotParams.takeoff_alt_m
+
+    def set_mode(self, mode: Mode, sender: int = 255) -> CommandResult:
+        if mode == self.mode and self.failsafe is None:
+            if mode == Mode.OFFBOARD and sender != self.offboard_owner:
+                return self._deny("Offboard denied: another system has control")
+            return CommandResult(MavResult.ACCEPTED)
+        if mode in (Mode.MANUAL, Mode.ALTCTL, Mode.POSCTL):
+            return self._deny(f"{mode.name} denied: no RC in this simulation")
+        if mode == Mode.MISSION:
+            return self._deny("Mission denied: no mission loaded")
+        if mode == Mode.OFFBOARD:
+            if not self.setpoint_stream_active():
+                return self._deny("Offboard denied: no setpoint stream (>2 Hz)")
+            self.offboard_owner = sender
+        if mode == Mode.TAKEOFF:
+            return self._takeoff(math.nan)
+        if mode in (Mode.RTL, Mode.LAND) and (not self.armed or self.landed):
+            if mode == Mode.LAND:
+                return CommandResult(MavResult.ACCEPTED)  # already down: nothing to do
+            return self._deny("RTL denied: not flying")
+        if self.failsafe is not None:
+            self._say(Severity.INFO, "Failsafe cleared by mode change")
+            self.failsafe = None
+        self._enter(mode)
+        return CommandResult(MavResult.ACCEPTED)
+
+    def _enter(self, mode: Mode) -> None:
+        prev = self.mode
+        self.mode = mode
+        pos = self.vehicle.tracked.pos_ned_m
+        yaw = float(quat.to_euler(self.vehicle.estimator.q)[2])
+        traj = self.vehicle.scenario.trajectory
+        if mode in _POSITION_MODES and prev not in _POSITION_MODES:
+            # start the reference where the vehicle is, moving as it moves
+            self.ref_filter = ReferenceFilter(traj, pos, yaw, self.vehicle.tracked.vel_ned_m_s)
+            self.position_loop.reset()
+            self.position_loop.thrust_n = self.setpoint.thrust_n
+        if mode == Mode.HOLD:
+            self.ref_filter.params = traj
+            self.target, self.target_yaw = pos, yaw
+        elif mode == Mode.TAKEOFF:
+            self.ref_filter.params = dataclasses.replace(traj, max_speed_m_s=self.params.takeoff_speed_m_s)
+            z = self.home[2] - self.takeoff_alt_m
+            self.target = (pos[0], pos[1], z if self.landed else min(pos[2], z))  # never descend
+            self.target_yaw = yaw
+        elif mode == Mode.LAND:
+            self.ref_filter.params = dataclasses.replace(traj, max_speed_m_s=self.params.land_speed_m_s)
+            self.target = (pos[0], pos[1], self.ground_z + 1.0)  # below the ground: keep descending
+            self.target_yaw = yaw
+            self.touchdown_time = None
+        elif mode == Mode.RTL:
+            self.ref_filter.params = traj
+            self.target = (self.home[0], self.home[1], min(pos[2], self.home[2] - self.takeoff_alt_m))
+            self.target_yaw = yaw
+            self._land_phase_home = False
+        elif mode == Mode.OFFBOARD:
+            self.failsafe = None
+        self._say(Severity.INFO, f"Mode {mode.name}")
+
+    # --- offboard setpoints ------------------------------------------------------------
+
+    def setpoint_stream_active(self) -> bool:
+        t = self.t
+        if t - self.last_setpoint_time > self.params.offboard_loss_timeout_s:
+            return False
+        recent = sum(1 for s in self.setpoint_times if t - s <= 1.0)
+        return recent >= max(2, int(self.params.offboard_min_rate_hz))
+
+    def attitude_target(
+        self, sender: int, type_mask: int, q: tuple[float, float, float, float], body_rates_rad_s: Vec3,
+        thrust: float,
+    ) -> str | None:
+        """A SET_ATTITUDE_TARGET; returns the reason it was rejected, or None.
+
+        ``thrust`` is normalised (0..1, T = thrust * T_max). Rejected: non-finite numbers, a
+        quaternion whose norm is off by more than 1e-3, thrust outside [0, 1], rates beyond
+        ``max_rate_setpoint_rad_s``, and any setpoint from a system other than the one that
+        took offboard control while in OFFBOARD.
+        """
+        use_rates = (not type_mask & 1, not type_mask & 2, not type_mask & 4)
+        use_thrust = not type_mask & 64
+        use_att = not type_mask & 128
+        reason = None
+        if use_att:
+            n = math.sqrt(sum(c * c for c in q)) if all(math.isfinite(c) for c in q) else math.nan
+            if not math.isfinite(n):
+                reason = "non-finite quaternion"
+            elif abs(n - 1.0) > 1e-3:
+                reason = "non-unit quaternion"
+        if reason is None and not all(math.isfinite(w) for w, u in zip(body_rates_rad_s, use_rates) if u):
+            reason = "non-finite body rate"
+        if reason is None and any(
+            abs(w) > self.params.max_rate_setpoint_rad_s for w, u in zip(body_rates_rad_s, use_rates) if u
+        ):
+            reason = "body rate out of range"
+        if reason is None and use_thrust and not (math.isfinite(thrust) and 0.0 <= thrust <= 1.0):
+            reason = "thrust outside [0, 1]"
+        if reason is None and self.mode == Mode.OFFBOARD and self.offboard_owner not in (None, sender):
+            reason = "setpoint from a system without offboard control"
+        if reason is not None:
+            self._reject(reason)
+            return reason
+        self._note_setpoint()
+        prev = self.offboard_attitude
+        t_max = self.vehicle.scenario.vehicle.thrust_max_n
+        thrust_n = thrust * t_max if use_thrust else (prev.thrust_n if prev else 0.0)
+        rates = tuple(w if u else 0.0 for w, u in zip(body_rates_rad_s, use_rates))
+        if use_att:
+            n = math.sqrt(sum(c * c for c in q))
+            q_d = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+            if self.params.strict_px4:
+                rates = (0.0, 0.0, rates[2])
+        else:
+            q_d = prev.q_d if prev else self.vehicle.estimator.q
+        self.offboard_attitude = AttitudeSetpoint(q_d, rates, thrust_n)  # type: ignore[arg-type]
+        self.offboard_uses_attitude = use_att
+        self.offboard_position = None
+        return None
+
+    def position_target(self, sender: int, pos_ned_m: Vec3, yaw_rad: float) -> str | None:
+        """A SET_POSITION_TARGET_LOCAL_NED (position and yaw); returns a rejection reason or None."""
+        if not all(math.isfinite(c) for c in (*pos_ned_m, yaw_rad)):
+            self._reject("non-finite position target")
+            return "non-finite position target"
+        if self.mode == Mode.OFFBOARD and self.offboard_owner not in (None, sender):
+            self._reject("setpoint from a system without offboard control")
+            return "setpoint from a system without offboard control"
+        self._note_setpoint()
+        if self.offboard_position is None and self.mode == Mode.OFFBOARD:
+            self._restart_reference()
+        self.offboard_position = (pos_ned_m, yaw_rad)
+        return None
+
+    def _note_setpoint(self) -> None:
+        self.last_setpoint_time = self.t
+        self.setpoint_times.append(self.t)
+
+    # --- stepping ----------------------------------------------------------------------
+
+    def step(self) -> None:
+        """One plant step: failsafes, the mode's setpoint, physics, landing detection."""
+        self._failsafes()
+        if self.armed:
+            self.setpoint = self._mode_setpoint()
+        self.vehicle.step(self.setpoint)
+        self._update_landed()
+        self._k += 1
+
+    def _failsafes(self) -> None:
+        p, t = self.params, self.t
+        if self.mode == Mode.OFFBOARD and t - self.last_setpoint_time > p.offboard_loss_timeout_s:
+            self.failsafe, self.failsafe_time = "offboard lost", t
+            self._say(Severity.CRITICAL, "Failsafe: offboard lost, holding")
+            self._enter(Mode.HOLD)
+        elif self.failsafe and self.mode == Mode.HOLD and t - self.failsafe_time > p.failsafe_hold_s:
+            self._say(Severity.CRITICAL, "Failsafe: landing")
+            self._enter(Mode.LAND)
+            self.failsafe = "offboard lost, landing"
+        if self.armed and self.landed:
+            if not self.lifted_off and t - self.arm_time > p.disarm_preflight_s and self.mode != Mode.TAKEOFF:
+                self._disarm("Disarmed: no take-off")
+            elif self.lifted_off and self.touchdown_time is not None and t - self.touchdown_time > p.disarm_land_s:
+                self._disarm("Landed, disarmed")
+
+    def _idle_setpoint(self) -> AttitudeSetpoint:
+        yaw = quat.to_euler(self.vehicle.estimator.q)[2]
+        return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3, 0.0)
+
+    def _reset_controllers(self) -> None:
+        self.vehicle.onboard.reset()
+        self.position_loop.reset()
+
+    def _restart_reference(self) -> None:
+        v = self.vehicle
+        self.ref_filter = ReferenceFilter(
+            v.scenario.trajectory, v.tracked.pos_ned_m, float(quat.to_euler(v.estimator.q)[2]), v.tracked.vel_ned_m_s)
+        self.position_loop.reset()
+        self.position_loop.thrust_n = self.setpoint.thrust_n
+
+    def _mode_setpoint(self) -> AttitudeSetpoint:
+        mode = self.mode
+        if mode == Mode.OFFBOARD and self.offboard_position is None:
+            sp = self.offboard_attitude
+            if sp is None:
+                return self._idle_setpoint()
+            if not self.offboard_uses_attitude:  # rates only: the attitude error stays zero
+                sp = AttitudeSetpoint(self.vehicle.estimator.q, sp.omega_d_rad_s, sp.thrust_n)
+            if self.landed and sp.thrust_n < self.vehicle.hover_thrust_n:
+                self.vehicle.onboard.reset()  # on the ground: no integrator wind-up
+            return sp
+        if mode == Mode.OFFBOARD:
+            assert self.offboard_position is not None
+            self.target, self.target_yaw = self.offboard_position
+        if self.landed and mode not in (Mode.TAKEOFF, Mode.OFFBOARD):
+            self._reset_controllers()
+            return self._idle_setpoint()
+        if self._k % self.pos_div != 0:
+            return self.setpoint
+        if mode == Mode.RTL:
+            pos = self.vehicle.tracked.pos_ned_m
+            if not self._land_phase_home and math.hypot(pos[0] - self.home[0], pos[1] - self.home[1]) < 0.3:
+                self._land_phase_home = True
+                self._enter(Mode.LAND)
+        if self.landed:
+            self.position_loop.reset()  # the ground reaction is not a disturbance to learn
+        v = self.vehicle
+        ms = v.tracked
+        sf_ned = quat.rotate(v.estimator.q, v.mean_specific_force_body())
+        ref = self.ref_filter.update(self.target, self.target_yaw, self.pos_dt)
+        meas = PositionMeasurement(ms.pos_ned_m, ms.vel_ned_m_s, v.estimator.q, sf_ned)
+        return self.position_loop.update(meas, ref, self.pos_dt)
+
+    def _update_landed(self) -> None:
+        ms = self.vehicle.tracked
+        height = self.ground_z - ms.pos_ned_m[2]
+        speed = math.sqrt(sum(v * v for v in ms.vel_ned_m_s))
+        if self.landed:
+            if height > 0.1:
+                self.landed = False
+                self.lifted_off = True
+                self.touchdown_time = None
+                if self.mode == Mode.TAKEOFF:
+                    self.position_loop.thrust_n = self.setpoint.thrust_n
+        elif height < 0.03 and speed < 0.2:
+            self.landed = True
+            self.touchdown_time = self.t
+        if self.mode == Mode.TAKEOFF and not self.landed:
+            if abs(ms.pos_ned_m[2] - self.target[2]) < 0.1 and speed < 0.3:
+                self._say(Severity.INFO, "Takeoff complete")
+                target = self.target
+                self._enter(Mode.HOLD)
+                self.target = target  # hold the take-off altitude, not where the check fired
+
+    @property
+    def landed_state(self) -> LandedState:
+        if not self.armed or (self.landed and self.mode != Mode.TAKEOFF):
+            return LandedState.ON_GROUND
+        if self.mode == Mode.TAKEOFF:
+            return LandedState.TAKEOFF
+        if self.mode == Mode.LAND:
+            return LandedState.LANDING
+        return LandedState.IN_AIR

@@ -1,0 +1,107 @@
+"""``sitl``: run the simulated vehicle as a MAVLink endpoint.
+
+    sitl                                   # udp 127.0.0.1:14540, real time, ISM+DO attitude loop
+    sitl --speedup 10 --scenario E5_suspended_weight --attitude pd_do
+    sitl --listen 0.0.0.0:14580 --peer 127.0.0.1:14540   # PX4 style: also push to a listening client
+
+Clients connect with ``udpout://127.0.0.1:14540`` (MAVSDK), ``udpout:127.0.0.1:14540``
+(pymavlink / MAVProxy ``--master``); with ``--peer`` the vehicle sends first, as PX4 does, to a
+client listening with ``udpin://0.0.0.0:PORT``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import signal
+import sys
+from typing import Sequence
+
+from companion.config import ConfigError
+
+from .autopilot import Autopilot, AutopilotParams
+from .scenario import Scenario, load_scenario
+from .server import MavlinkServer, ServerConfig
+from .telemetry import GeoOrigin
+from .vehicle import SimVehicle
+
+__all__ = ["main", "build", "parse_address"]
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` (or ``udp://HOST:PORT``) to a tuple, with a clear error."""
+    raw = text.split("://", 1)[-1]
+    host, sep, port = raw.rpartition(":")
+    if not sep or not port.isdigit() or not 0 < int(port) < 65536:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT, got {text!r}")
+    return host or "127.0.0.1", int(port)
+
+
+def parse_origin(text: str) -> GeoOrigin:
+    try:
+        lat, lon, alt = (float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LAT,LON,ALT, got {text!r}") from None
+    return GeoOrigin(lat, lon, alt)
+
+
+def build(args: argparse.Namespace) -> MavlinkServer:
+    scenario = load_scenario(args.scenario) if args.scenario else Scenario(name="sitl")
+    # a live vehicle starts on the ground at the origin, whatever the scenario's setpoint says
+    vehicle = SimVehicle(scenario, args.attitude, args.seed, (0.0, 0.0, scenario.airframe.ground_z_m), 0.0,
+                         hovering=False)
+    ap = Autopilot(vehicle, AutopilotParams(strict_px4=args.flavour == "px4-strict"))
+    cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
+                       origin=args.origin)
+    return MavlinkServer(ap, cfg)
+
+
+async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) -> None:
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    await server.start()
+    host, port = server.address
+    if not quiet:
+        print(f"sitl: vehicle sysid {server.config.sysid} compid {server.config.compid} listening on "
+              f"udp://{host}:{port} (MAVSDK: udpout://{host}:{port}), speed-up {server.config.speedup:g}x",
+              flush=True)
+    await server.run(stop, duration_s)
+    report = {"t": round(server.ap.t, 3), "stats": dict(server.stats), "rejections": dict(server.rejections),
+              "mode": server.ap.mode.name, "armed": server.ap.armed}
+    print(f"sitl: stopped {json.dumps(report)}", flush=True)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="sitl", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--listen", type=parse_address, default=("127.0.0.1", 14540), help="HOST:PORT to bind")
+    ap.add_argument("--peer", type=parse_address, action="append", default=[],
+                    help="HOST:PORT to send to from the start (repeatable)")
+    ap.add_argument("--speedup", type=float, default=1.0, help="simulated seconds per wall second")
+    ap.add_argument("--scenario", help="scenario file or bundled name: vehicle, wind, forces, gains")
+    ap.add_argument("--attitude", choices=("pd", "pd_do", "ism_do"), default="ism_do",
+                    help="onboard attitude controller")
+    ap.add_argument("--flavour", choices=("px4", "px4-strict"), default="px4",
+                    help="px4-strict: with an attitude, use only the yaw rate of SET_ATTITUDE_TARGET")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--sysid", type=int, default=1)
+    ap.add_argument("--origin", type=parse_origin, default=GeoOrigin(), help="LAT,LON,ALT of the local origin")
+    ap.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
+    ap.add_argument("--quiet", action="store_true")
+    args = ap.parse_args(argv)
+    if not 0.05 <= args.speedup <= 1000:
+        ap.error("--speedup must be within 0.05..1000")
+    try:
+        server = build(args)
+    except ConfigError as exc:
+        print(f"sitl: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        asyncio.run(serve(server, args.duration, args.quiet))
+    except OSError as exc:
+        print(f"sitl: error: cannot listen on {args.listen[0]}:{args.listen[1]}: {exc.strerror or exc}",
+              file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,438 @@
+"""The simulated vehicle on the wire: MAVLink 2 over UDP, paced in real time or faster.
+
+One asyncio task steps the autopilot at the plant rate, keeping simulated time at
+``speedup`` times wall time (it falls back to slower than requested, and counts it, if the
+machine cannot keep up), and sends each telemetry stream when it is due in simulated time.
+Datagrams are handled between steps as they arrive: each is parsed on its own (a truncated
+packet cannot swallow the next one), every message is checked for its target, and anything
+malformed, oversized, mis-addressed or out of range is dropped and counted — never raised.
+
+Incoming wire messages become :class:`~sitl.autopilot.Autopilot` calls here; outgoing state
+becomes messages in :mod:`sitl.telemetry`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from .autopilot import Autopilot, MavResult, Severity
+from .parameters import ParamTable, build_parameters
+from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
+
+__all__ = ["ServerConfig", "MavlinkServer"]
+
+MAX_DATAGRAM = 4096
+_INITIAL_EXPECTED_LENGTH = mavlink.MAVLink(None).expected_length  # parser state before any byte
+MAX_PEERS = 16
+PEER_TIMEOUT_S = 30.0
+
+# commands answered by the server itself (the rest go to the autopilot)
+MAV_CMD_SET_MESSAGE_INTERVAL = 511
+MAV_CMD_REQUEST_MESSAGE = 512
+MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
+MAV_CMD_GET_HOME_POSITION = 410
+MAV_CMD_REQUEST_PROTOCOL_VERSION = 519
+
+
+@dataclass
+class ServerConfig:
+    listen: tuple[str, int] = ("127.0.0.1", 14540)
+    peers: tuple[tuple[str, int], ...] = ()
+    """addresses to send to from the start (clients that listen, e.g. MAVSDK's udpin://)"""
+    speedup: float = 1.0
+    sysid: int = 1
+    compid: int = 1
+    origin: GeoOrigin = field(default_factory=GeoOrigin)
+    rates_hz: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_RATES_HZ))
+    max_lag_s: float = 0.2
+    """wall-time lag beyond which the clock is re-based (the simulation then runs slower)"""
+
+
+class _Protocol(asyncio.DatagramProtocol):
+    def __init__(self, server: MavlinkServer) -> None:
+        self.server = server
+
+    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        self.server.datagram_received(data, addr)
+
+    def error_received(self, exc: Exception) -> None:  # e.g. ICMP port unreachable for a peer
+        self.server.stats["socket_errors"] += 1
+
+
+class MavlinkServer:
+    """MAVLink endpoint of one :class:`Autopilot`; :meth:`run` until ``stop`` is set."""
+
+    def __init__(self, ap: Autopilot, config: ServerConfig | None = None) -> None:
+        self.ap = ap
+        self.config = cfg = config or ServerConfig()
+        ap.origin_alt_m = cfg.origin.alt_m
+        self.mav = mavlink.MAVLink(None, srcSystem=cfg.sysid, srcComponent=cfg.compid)
+        self.parser = mavlink.MAVLink(None)
+        self.parser.robust_parsing = True
+        self.telemetry = Telemetry(ap, self.mav, cfg.origin, mavlink.MAV_AUTOPILOT_PX4)
+        self.params: ParamTable = build_parameters(ap)
+        self.stats: Counter[str] = Counter()
+        self.rejections: Counter[str] = Counter()
+        self.peers: dict[tuple[str, int], float] = {p: math.inf for p in cfg.peers}
+        self.transport: asyncio.DatagramTransport | None = None
+        self.step_lateness_s: list[float] = []
+        """wall-clock lateness of each loop pass (bounded ring), for the latency benchmark"""
+        self._intervals: dict[int, float] = {m: 1.0 / hz for m, hz in cfg.rates_hz.items() if hz > 0}
+        self._due: dict[int, float] = {m: 0.0 for m in self._intervals}
+        self._next_due = 0.0
+        self._last_warning: dict[str, float] = {}
+        self._handlers: dict[str, Callable[[Any], None]] = {
+            "COMMAND_LONG": self._command_long,
+            "COMMAND_INT": self._command_int,
+            "SET_ATTITUDE_TARGET": self._set_attitude_target,
+            "SET_POSITION_TARGET_LOCAL_NED": self._set_position_target,
+            "PARAM_REQUEST_LIST": self._param_request_list,
+            "PARAM_REQUEST_READ": self._param_request_read,
+            "PARAM_SET": self._param_set,
+            "PING": self._ping,
+            "TIMESYNC": self._timesync,
+            "REQUEST_DATA_STREAM": self._request_data_stream,
+            "MISSION_REQUEST_LIST": self._mission_request_list,
+        }
+
+    # --- sending -------------------------------------------------------------------------
+
+    def send(self, msg: mavlink.MAVLink_message) -> None:
+        if self.transport is None or not self.peers:
+            return
+        buf = msg.pack(self.mav)
+        for addr in self.peers:
+            self.transport.sendto(buf, addr)
+        self.stats["sent"] += 1
+
+    def say(self, severity: int, text: str) -> None:
+        self.send(self.telemetry.statustext(severity, text))
+
+    def _drain_messages(self) -> None:
+        msgs = self.ap.messages
+        while msgs:
+            sev, text = msgs.popleft()
+            self.say(int(sev), text)
+
+    def _warn_once(self, key: str, text: str, every_s: float = 5.0) -> None:
+        """A STATUSTEXT for a rejected input, at most once per ``every_s`` (simulated) per kind."""
+        t = self.ap.t
+        if t - self._last_warning.get(key, -math.inf) >= every_s:
+            self._last_warning[key] = t
+            self.say(Severity.WARNING, text)
+
+    def _telemetry_tick(self) -> None:
+        t = self.ap.t
+        if t + 1e-9 < self._next_due:
+            return
+        enc = self.telemetry.encoders
+        for msg_id, due in self._due.items():
+            if t + 1e-9 >= due:
+                self.send(enc[msg_id]())
+                interval = self._intervals[msg_id]
+                self._due[msg_id] = due + interval if t - due < interval else t + interval
+        self._next_due = min(self._due.values(), default=math.inf)
+
+    def set_interval(self, msg_id: int, interval_s: float | None) -> None:
+        """Stream ``msg_id`` every ``interval_s`` simulated seconds (None: stop it)."""
+        if interval_s is None:
+            self._intervals.pop(msg_id, None)
+            self._due.pop(msg_id, None)
+        else:
+            self._intervals[msg_id] = interval_s
+            self._due[msg_id] = self.ap.t
+        self._next_due = min(self._due.values(), default=math.inf)
+
+    # --- receiving -----------------------------------------------------------------------
+
+    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        """Never raises: whatever arrives, the vehicle keeps flying (errors are counted)."""
+        try:
+            self._datagram(data, addr)
+        except Exception:
+            self.stats["internal_errors"] += 1
+
+    def _datagram(self, data: bytes, addr: tuple[str, int]) -> None:
+        st = self.stats
+        st["datagrams"] += 1
+        if len(data) > MAX_DATAGRAM:
+            st["oversized"] += 1
+            return
+        p = self.parser
+        # parse every datagram on its own: a truncated frame must not eat the next datagram
+        p.buf = bytearray()
+        p.buf_index = 0
+        p.expected_length = _INITIAL_EXPECTED_LENGTH
+        p.have_prefix_error = False
+        try:
+            msgs = p.parse_buffer(data) or []
+        except Exception:  # pymavlink raises on some malformed input even in robust mode
+            st["bad_data"] += 1
+            return
+        if p.buf_len() > 0:
+            st["truncated"] += 1
+        good = False
+        for msg in msgs:
+            kind = msg.get_type()
+            if kind == "BAD_DATA" or kind == "BAD_SIGNATURE":
+                st["bad_data"] += 1
+                continue
+            good = True
+            st["messages"] += 1
+            handler = self._handlers.get(kind)
+            if handler is None:
+                continue
+            try:
+                handler(msg)
+            except Exception:  # a handler bug or a field we could not use: drop, count, go on
+                st["handler_errors"] += 1
+        if good:
+            self._note_peer(addr)
+        self._drain_messages()
+
+    def _note_peer(self, addr: tuple[str, int]) -> None:
+        now = time.monotonic()
+        if addr not in self.peers and len(self.peers) >= MAX_PEERS:
+            learned = [(t, a) for a, t in self.peers.items() if t != math.inf]
+            if learned:
+                self.peers.pop(min(learned)[1])
+        if self.peers.get(addr) != math.inf:
+            self.peers[addr] = now
+
+    def _expire_peers(self) -> None:
+        now = time.monotonic()
+        for addr, t in list(self.peers.items()):
+            if t != math.inf and now - t > PEER_TIMEOUT_S:
+                del self.peers[addr]
+
+    def _for_us(self, msg: Any, comp_field: str = "target_component") -> bool:
+        ok = msg.target_system in (0, self.config.sysid) and getattr(msg, comp_field, 0) in (0, self.config.compid)
+        if not ok:
+            self.stats["wrong_target"] += 1
+        return ok
+
+    def _reject(self, reason: str) -> None:
+        self.stats["rejected"] += 1
+        self.rejections[reason] += 1
+        self._warn_once(reason, f"Rejected: {reason}")
+
+    # --- commands --------------------------------------------------------------------------
+
+    def _ack(self, msg: Any, command: int, result: int) -> None:
+        self.send(self.mav.command_ack_encode(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+
+    def _command_long(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
+        self._command(msg, msg.command, params)
+
+    def _command_int(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y), msg.z)
+        self._command(msg, msg.command, params)
+
+    def _command(self, msg: Any, command: int, params: tuple[float, ...]) -> None:
+        if command == MAV_CMD_SET_MESSAGE_INTERVAL:
+            self._ack(msg, command, self._set_message_interval(params[0], params[1]))
+        elif command == MAV_CMD_REQUEST_MESSAGE:
+            self._ack(msg, command, self._request_message(params[0]))
+        elif command == MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
+            self._ack(msg, command, self._request_message(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION))
+        elif command == MAV_CMD_GET_HOME_POSITION:
+            self._ack(msg, command, self._request_message(mavlink.MAVLINK_MSG_ID_HOME_POSITION))
+        else:
+            result = self.ap.command(command, params, msg.get_srcSystem())
+            if result.result != MavResult.ACCEPTED:
+                self.rejections[f"command {command}: {result.reason}"] += 1
+            self._ack(msg, command, int(result.result))
+
+    def _set_message_interval(self, msg_id: float, interval_us: float) -> int:
+        if not (math.isfinite(msg_id) and math.isfinite(interval_us)):
+            self._reject("message interval: non-finite parameters")
+            return MavResult.DENIED
+        mid = int(msg_id)
+        if mid not in self.telemetry.encoders or mid == mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
+            self._reject(f"message interval: cannot stream message {mid}")
+            return MavResult.DENIED
+        if interval_us == -1:
+            self.set_interval(mid, None)
+        elif interval_us == 0:
+            hz = DEFAULT_RATES_HZ.get(mid, 0.0)
+            self.set_interval(mid, 1.0 / hz if hz > 0 else None)
+        elif interval_us > 0:
+            self.set_interval(mid, max(interval_us * 1e-6, self.ap.dt))
+        else:
+            self._reject("message interval: negative interval")
+            return MavResult.DENIED
+        return MavResult.ACCEPTED
+
+    def _request_message(self, msg_id: float) -> int:
+        if not math.isfinite(msg_id) or int(msg_id) not in self.telemetry.encoders:
+            self._reject("request message: cannot send that message")
+            return MavResult.DENIED
+        self.send(self.telemetry.encoders[int(msg_id)]())
+        return MavResult.ACCEPTED
+
+    # --- setpoints -------------------------------------------------------------------------
+
+    def _set_attitude_target(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        rates = (msg.body_roll_rate, msg.body_pitch_rate, msg.body_yaw_rate)
+        reason = self.ap.attitude_target(msg.get_srcSystem(), msg.type_mask, tuple(msg.q), rates, msg.thrust)
+        if reason is not None:
+            self._reject(f"attitude target: {reason}")
+
+    def _set_position_target(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        if msg.coordinate_frame != mavlink.MAV_FRAME_LOCAL_NED or msg.type_mask & 0b111:
+            self._reject("position target: only LOCAL_NED positions are supported")
+            return
+        yaw = msg.yaw if not msg.type_mask & 1024 else math.nan
+        if not math.isfinite(yaw):
+            yaw = self.ap.target_yaw
+        reason = self.ap.position_target(msg.get_srcSystem(), (msg.x, msg.y, msg.z), yaw)
+        if reason is not None:
+            self._reject(f"position target: {reason}")
+
+    # --- parameters ----------------------------------------------------------------------
+
+    def _param_value(self, index: int) -> None:
+        p = self.params.at(index)
+        if p is None:
+            return
+        self.send(self.mav.param_value_encode(
+            p.name.encode("ascii"), float(p.value), mavlink.MAV_PARAM_TYPE_REAL32, len(self.params), index))
+
+    def _param_request_list(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        for i in range(len(self.params)):
+            self._param_value(i)
+
+    def _param_request_read(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        index = msg.param_index
+        if index < 0:
+            name = _param_name(msg.param_id)
+            found = self.params.index(name)
+            if found is None:
+                self._reject(f"param read: unknown parameter {name!r}")
+                return
+            index = found
+        if self.params.at(index) is None:
+            self._reject(f"param read: no parameter at index {index}")
+            return
+        self._param_value(index)
+
+    def _param_set(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        name = _param_name(msg.param_id)
+        index = self.params.index(name)
+        reason = self.params.set(name, float(msg.param_value))
+        if reason is not None:
+            self._reject(f"param set: {reason}")
+        if index is not None:
+            self._param_value(index)  # echo the value now in force (the old one if refused)
+
+    # --- small protocols -------------------------------------------------------------------
+
+    def _ping(self, msg: Any) -> None:
+        if msg.target_system == 0:  # a request: answer it, addressed to the sender
+            self.send(self.mav.ping_encode(msg.time_usec, msg.seq, msg.get_srcSystem(), msg.get_srcComponent()))
+
+    def _timesync(self, msg: Any) -> None:
+        if msg.tc1 == 0:
+            self.send(self.mav.timesync_encode(int(self.ap.t * 1e9), msg.ts1, msg.get_srcSystem(),
+                                               msg.get_srcComponent()))
+
+    def _request_data_stream(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        if msg.start_stop == 0 and msg.req_stream_id == 0:
+            for mid in list(self._intervals):
+                if mid != mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+                    self.set_interval(mid, None)
+        elif msg.start_stop:
+            for mid, hz in DEFAULT_RATES_HZ.items():
+                self.set_interval(mid, 1.0 / hz)
+
+    def _mission_request_list(self, msg: Any) -> None:
+        if not self._for_us(msg):
+            return
+        self.send(self.mav.mission_count_encode(msg.get_srcSystem(), msg.get_srcComponent(), 0,
+                                                getattr(msg, "mission_type", 0)))
+
+    # --- running -------------------------------------------------------------------------
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(self), local_addr=self.config.listen)
+        self.transport = transport  # type: ignore[assignment]
+
+    @property
+    def address(self) -> tuple[str, int]:
+        assert self.transport is not None
+        host, port = self.transport.get_extra_info("sockname")[:2]
+        return host, port
+
+    async def run(self, stop: asyncio.Event, duration_s: float | None = None) -> None:
+        """Step in real time x ``speedup`` until ``stop`` is set (or ``duration_s`` simulated)."""
+        if self.transport is None:
+            await self.start()
+        ap, speedup = self.ap, self.config.speedup
+        dt = ap.dt
+        wall0, sim0 = time.monotonic(), ap.t
+        lateness = self.step_lateness_s
+        last_expire = wall0
+        try:
+            while not stop.is_set():
+                if duration_s is not None and ap.t >= duration_s:
+                    break
+                now = time.monotonic()
+                target = sim0 + (now - wall0) * speedup
+                due_wall = wall0 + (ap.t + dt - sim0) / speedup
+                if now >= due_wall:
+                    lateness.append(now - due_wall)
+                    if len(lateness) > 200_000:
+                        del lateness[:100_000]
+                steps = 0
+                while ap.t + 0.5 * dt <= target:
+                    ap.step()
+                    self._telemetry_tick()
+                    steps += 1
+                    if steps % 50 == 0:
+                        await asyncio.sleep(0)  # let datagrams in during long catch-ups
+                if self.ap.messages:
+                    self._drain_messages()
+                lag = target - ap.t
+                if lag > self.config.max_lag_s * speedup:
+                    self.stats["overruns"] += 1  # cannot keep up: re-base the clock, run slower
+                    wall0, sim0 = time.monotonic(), ap.t
+                if now - last_expire > 1.0:
+                    self._expire_peers()
+                    last_expire = now
+                next_wall = wall0 + (ap.t + dt - sim0) / speedup
+                await asyncio.sleep(max(0.0, next_wall - time.monotonic()))
+        finally:
+            if self.transport is not None:
+                self.transport.close()
+                self.transport = None
+
+
+def _param_name(raw: object) -> str:
+    if isinstance(raw, bytes):
+        raw = raw.decode("ascii", "replace")
+    return str(raw).split("\x00", 1)[0]

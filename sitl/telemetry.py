@@ -1,0 +1,240 @@
+"""Outgoing MAVLink: every message the simulated vehicle sends, built from its state.
+
+The one place where the vehicle's state becomes wire messages (pymavlink, MAVLink 2, the
+``ardupilotmega`` dialect, which includes ``common``). Timestamps are the simulated clock.
+Units and frames are MAVLink's, which are ours: NED, FRD, scalar-first body-to-NED quaternions.
+What the telemetry reports is what an autopilot would know: the tracking system's position
+and differenced velocity, the onboard attitude estimate and bias-corrected rates, the IMU.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from companion.control import quaternion as quat
+
+from .autopilot import Autopilot
+
+__all__ = ["GeoOrigin", "Telemetry", "DEFAULT_RATES_HZ", "SYS_STATUS_SENSORS", "PREARM_CHECK"]
+
+EARTH_RADIUS_M = 6378137.0
+
+# SYS_STATUS sensor bits MAVSDK reads for its health flags (gyro, accel, mag calibrated; GPS and
+# vision position for local/global position ok; motor outputs) and the pre-arm check bit.
+SYS_STATUS_SENSORS = (
+    mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG
+    | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | mavlink.MAV_SYS_STATUS_SENSOR_GPS
+    | mavlink.MAV_SYS_STATUS_SENSOR_VISION_POSITION
+    | mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+    | mavlink.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+)
+PREARM_CHECK = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+
+DEFAULT_RATES_HZ: dict[int, float] = {
+    mavlink.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
+    mavlink.MAVLINK_MSG_ID_SYS_STATUS: 1.0,
+    mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 5.0,
+    mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 100.0,
+    mavlink.MAVLINK_MSG_ID_ATTITUDE: 20.0,
+    mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 60.0,
+    mavlink.MAVLINK_MSG_ID_ODOMETRY: 30.0,
+    mavlink.MAVLINK_MSG_ID_HIGHRES_IMU: 100.0,
+    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 10.0,
+    mavlink.MAVLINK_MSG_ID_GPS_RAW_INT: 1.0,
+    mavlink.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
+    mavlink.MAVLINK_MSG_ID_ATTITUDE_TARGET: 50.0,
+    mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: 1.0,
+}
+"""Default stream rates (simulated Hz), PX4's onboard-link set; SET_MESSAGE_INTERVAL changes them."""
+
+
+@dataclass(frozen=True)
+class GeoOrigin:
+    """Where the local NED origin is on Earth (default: PX4 SITL's Zurich field)."""
+
+    lat_deg: float = 47.397742
+    lon_deg: float = 8.545594
+    alt_m: float = 488.0
+
+    def to_global(self, north_m: float, east_m: float, down_m: float) -> tuple[int, int, int]:
+        """``(lat 1e7 deg, lon 1e7 deg, alt mm AMSL)`` by a flat-earth projection."""
+        lat = self.lat_deg + math.degrees(north_m / EARTH_RADIUS_M)
+        lon = self.lon_deg + math.degrees(east_m / (EARTH_RADIUS_M * math.cos(math.radians(self.lat_deg))))
+        return int(round(lat * 1e7)), int(round(lon * 1e7)), int(round((self.alt_m - down_m) * 1000))
+
+
+def _f(x: object) -> float:
+    return float(x)  # type: ignore[arg-type]
+
+
+class Telemetry:
+    """Builds messages from an :class:`Autopilot`; ``encoders`` maps message id to builder."""
+
+    def __init__(self, ap: Autopilot, mav: mavlink.MAVLink, origin: GeoOrigin, autopilot_type: int) -> None:
+        self.ap = ap
+        self.mav = mav
+        self.origin = origin
+        self.autopilot_type = autopilot_type
+        self.encoders: dict[int, Callable[[], mavlink.MAVLink_message]] = {
+            mavlink.MAVLINK_MSG_ID_HEARTBEAT: self.heartbeat,
+            mavlink.MAVLINK_MSG_ID_SYS_STATUS: self.sys_status,
+            mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: self.extended_sys_state,
+            mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: self.attitude_quaternion,
+            mavlink.MAVLINK_MSG_ID_ATTITUDE: self.attitude,
+            mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: self.local_position_ned,
+            mavlink.MAVLINK_MSG_ID_ODOMETRY: self.odometry,
+            mavlink.MAVLINK_MSG_ID_HIGHRES_IMU: self.highres_imu,
+            mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: self.global_position_int,
+            mavlink.MAVLINK_MSG_ID_GPS_RAW_INT: self.gps_raw_int,
+            mavlink.MAVLINK_MSG_ID_HOME_POSITION: self.home_position,
+            mavlink.MAVLINK_MSG_ID_ATTITUDE_TARGET: self.attitude_target,
+            mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: self.system_time,
+            mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION: self.autopilot_version,
+        }
+
+    # --- time ----------------------------------------------------------------------------
+
+    @property
+    def time_boot_ms(self) -> int:
+        return int(self.ap.t * 1000.0) & 0xFFFFFFFF
+
+    @property
+    def time_usec(self) -> int:
+        return int(self.ap.t * 1e6)
+
+    # --- messages --------------------------------------------------------------------------
+
+    def heartbeat(self) -> mavlink.MAVLink_message:
+        ap = self.ap
+        base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        if ap.armed:
+            base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        status = mavlink.MAV_STATE_ACTIVE if ap.armed else mavlink.MAV_STATE_STANDBY
+        if ap.failsafe:
+            status = mavlink.MAV_STATE_CRITICAL
+        return self.mav.heartbeat_encode(
+            mavlink.MAV_TYPE_QUADROTOR, self.autopilot_type, base, ap.mode.custom_mode, status
+        )
+
+    def armable(self) -> bool:
+        ap = self.ap
+        return ap.landed and ap.t >= 1.0
+
+    def sys_status(self) -> mavlink.MAVLink_message:
+        health = SYS_STATUS_SENSORS | (PREARM_CHECK if self.armable() or self.ap.armed else 0)
+        present = SYS_STATUS_SENSORS | PREARM_CHECK
+        return self.mav.sys_status_encode(
+            present, present, health, 250, 16000, -1, 100, 0, 0, 0, 0, 0, 0
+        )
+
+    def extended_sys_state(self) -> mavlink.MAVLink_message:
+        return self.mav.extended_sys_state_encode(mavlink.MAV_VTOL_STATE_UNDEFINED, int(self.ap.landed_state))
+
+    def attitude_quaternion(self) -> mavlink.MAVLink_message:
+        v = self.ap.vehicle
+        q, w = v.estimator.q, v.omega_est
+        return self.mav.attitude_quaternion_encode(
+            self.time_boot_ms, _f(q[0]), _f(q[1]), _f(q[2]), _f(q[3]), _f(w[0]), _f(w[1]), _f(w[2]), [0.0] * 4
+        )
+
+    def attitude(self) -> mavlink.MAVLink_message:
+        v = self.ap.vehicle
+        r, p, y = quat.to_euler(v.estimator.q)
+        w = v.omega_est
+        return self.mav.attitude_encode(self.time_boot_ms, _f(r), _f(p), _f(y), _f(w[0]), _f(w[1]), _f(w[2]))
+
+    def local_position_ned(self) -> mavlink.MAVLink_message:
+        ms = self.ap.vehicle.tracked
+        p, vel = ms.pos_ned_m, ms.vel_ned_m_s
+        return self.mav.local_position_ned_encode(
+            self.time_boot_ms, _f(p[0]), _f(p[1]), _f(p[2]), _f(vel[0]), _f(vel[1]), _f(vel[2])
+        )
+
+    def odometry(self) -> mavlink.MAVLink_message:
+        v = self.ap.vehicle
+        ms = v.tracked
+        q, w = v.estimator.q, v.omega_est
+        vb = quat.rotate_inverse(q, ms.vel_ned_m_s)  # ODOMETRY velocity is in the child frame
+        nan21 = [math.nan] + [0.0] * 20
+        p = ms.pos_ned_m
+        return self.mav.odometry_encode(
+            self.time_usec, mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_FRD,
+            _f(p[0]), _f(p[1]), _f(p[2]), [_f(c) for c in q], _f(vb[0]), _f(vb[1]), _f(vb[2]),
+            _f(w[0]), _f(w[1]), _f(w[2]), nan21, nan21, 0, mavlink.MAV_ESTIMATOR_TYPE_VISION, 100,
+        )
+
+    def highres_imu(self) -> mavlink.MAVLink_message:
+        v = self.ap.vehicle
+        s = v.imu_sample
+        a, g = s.specific_force_body_m_s2, s.gyro_rad_s
+        # magnetometer: a fixed Earth field (0.21 north, 0.43 down, gauss) seen from the body
+        m = quat.rotate_inverse(v.state.q, (0.21, 0.0, 0.43))
+        alt = self.origin.alt_m - _f(v.state.pos_ned_m[2])
+        pressure_hpa = 1013.25 * (1.0 - 2.25577e-5 * alt) ** 5.25588
+        fields = 0x1FFF  # acc, gyro, mag, abs pressure, diff pressure, pressure alt, temperature
+        return self.mav.highres_imu_encode(
+            self.time_usec, _f(a[0]), _f(a[1]), _f(a[2]), _f(g[0]), _f(g[1]), _f(g[2]),
+            _f(m[0]), _f(m[1]), _f(m[2]), pressure_hpa, 0.0, alt, 20.0, fields, 0,
+        )
+
+    def global_position_int(self) -> mavlink.MAVLink_message:
+        ap = self.ap
+        ms = ap.vehicle.tracked
+        p, vel = ms.pos_ned_m, ms.vel_ned_m_s
+        lat, lon, alt = self.origin.to_global(_f(p[0]), _f(p[1]), _f(p[2]))
+        yaw = _f(quat.to_euler(ap.vehicle.estimator.q)[2])
+        hdg = int(round(math.degrees(yaw) % 360.0 * 100)) % 36000
+        return self.mav.global_position_int_encode(
+            self.time_boot_ms, lat, lon, alt, int(round((_f(ap.home[2]) - _f(p[2])) * 1000)),
+            int(round(_f(vel[0]) * 100)), int(round(_f(vel[1]) * 100)), int(round(_f(vel[2]) * 100)), hdg,
+        )
+
+    def gps_raw_int(self) -> mavlink.MAVLink_message:
+        p = self.ap.vehicle.tracked.pos_ned_m
+        lat, lon, alt = self.origin.to_global(_f(p[0]), _f(p[1]), _f(p[2]))
+        return self.mav.gps_raw_int_encode(self.time_usec, 3, lat, lon, alt, 80, 120, 0, 65535, 16)
+
+    def home_position(self) -> mavlink.MAVLink_message:
+        h = self.ap.home
+        lat, lon, alt = self.origin.to_global(_f(h[0]), _f(h[1]), _f(h[2]))
+        return self.mav.home_position_encode(
+            lat, lon, alt, _f(h[0]), _f(h[1]), _f(h[2]), [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, self.time_usec
+        )
+
+    def attitude_target(self) -> mavlink.MAVLink_message:
+        ap = self.ap
+        sp = ap.setpoint
+        q, w = sp.q_d, sp.omega_d_rad_s
+        thrust = _f(sp.thrust_n) / ap.vehicle.scenario.vehicle.thrust_max_n
+        return self.mav.attitude_target_encode(
+            self.time_boot_ms, 0, [_f(c) for c in q], _f(w[0]), _f(w[1]), _f(w[2]), thrust
+        )
+
+    def system_time(self) -> mavlink.MAVLink_message:
+        return self.mav.system_time_encode(0, self.time_boot_ms)
+
+    def autopilot_version(self) -> mavlink.MAVLink_message:
+        caps = (
+            mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+            | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+            | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+            | mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
+            | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+        )
+        version = (1 << 24) | (15 << 16) | (0 << 8) | 255  # 1.15.0, release
+        return self.mav.autopilot_version_encode(
+            caps, version, version, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0x15D0_0001, [0] * 18
+        )
+
+    def statustext(self, severity: int, text: str) -> mavlink.MAVLink_message:
+        return self.mav.statustext_encode(severity, text.encode("ascii", "replace")[:50], 0, 0)
