@@ -1,0 +1,159 @@
+"""Real processes over real UDP on 127.0.0.1: the simulated vehicle and clients that talk to it."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from pymavlink import mavutil
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class SitlProcess:
+    """``python -m sitl`` in its own process; :meth:`stop` returns its final report."""
+
+    def __init__(self, *args: str, speedup: float = 2.0) -> None:
+        self.port = free_udp_port()
+        self.speedup = speedup
+        cmd = [sys.executable, "-m", "sitl", "--listen", f"127.0.0.1:{self.port}", "--speedup", str(speedup), *args]
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     env=env)
+        line = self.proc.stdout.readline()  # type: ignore[union-attr]
+        if "listening" not in line:
+            rest = self.proc.communicate(timeout=5)[0]
+            raise RuntimeError(f"sitl did not start: {line}{rest}")
+        self.report: dict | None = None
+
+    @property
+    def url(self) -> str:
+        return f"127.0.0.1:{self.port}"
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def stop(self) -> dict:
+        if self.report is not None:
+            return self.report
+        if self.alive():
+            self.proc.send_signal(signal.SIGTERM)
+        out = self.proc.communicate(timeout=10)[0]
+        for line in out.splitlines():
+            if line.startswith("sitl: stopped "):
+                self.report = json.loads(line[len("sitl: stopped "):])
+                return self.report
+        raise RuntimeError(f"sitl gave no report (exit {self.proc.returncode}):\n{out}")
+
+
+@pytest.fixture
+def sitl():
+    procs: list[SitlProcess] = []
+
+    def start(*args: str, speedup: float = 2.0) -> SitlProcess:
+        p = SitlProcess(*args, speedup=speedup)
+        procs.append(p)
+        return p
+
+    yield start
+    for p in procs:
+        if p.alive():
+            p.proc.kill()
+            p.proc.wait()
+
+
+class Client:
+    """A pymavlink ground station on a fresh UDP socket, talking to one vehicle."""
+
+    def __init__(self, url: str, source_system: int = 255) -> None:
+        self.m = mavutil.mavlink_connection(f"udpout:{url}", source_system=source_system, source_component=190)
+        self.m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        self.seen: dict[str, object] = {}
+        self.texts: list[str] = []
+
+    def recv(self, timeout: float = 0.2):
+        """The next message, waiting up to ``timeout`` s (0: only what is already queued)."""
+        msg = self.m.recv_match(blocking=timeout > 0, timeout=timeout if timeout > 0 else None)
+        if msg is not None:
+            kind = msg.get_type()
+            self.seen[kind] = msg
+            if kind == "STATUSTEXT":
+                self.texts.append(msg.text)
+        return msg
+
+    def wait(self, kind: str | tuple[str, ...], cond=lambda m: True, timeout: float = 10.0):
+        kinds = (kind,) if isinstance(kind, str) else kind
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            msg = self.recv(0.1)
+            if msg is not None and msg.get_type() in kinds and cond(msg):
+                return msg
+        raise AssertionError(f"no {kinds} within {timeout} s")
+
+    def latest(self, kind: str, timeout: float = 5.0):
+        """The newest message of ``kind``: drain what is queued, then wait for one if none."""
+        newest = None
+        while (msg := self.recv(0.0)) is not None:
+            if msg.get_type() == kind:
+                newest = msg
+        return newest if newest is not None else self.wait(kind, timeout=timeout)
+
+    def text(self, fragment: str, timeout: float = 10.0) -> str:
+        """A STATUSTEXT containing ``fragment``, already received or arriving within ``timeout``."""
+        for t in self.texts:
+            if fragment in t:
+                return t
+        return self.wait("STATUSTEXT", lambda m: fragment in m.text, timeout).text
+
+    def command(self, command: int, *params: float, timeout: float = 5.0) -> int:
+        p = list(params) + [0.0] * (7 - len(params))
+        self.m.mav.command_long_send(1, 1, command, 0, *p)
+        ack = self.wait("COMMAND_ACK", lambda a: a.command == command, timeout)
+        return ack.result
+
+    def set_mode(self, main: int, sub: int = 0) -> int:
+        return self.command(176, 1, main, sub)
+
+    def attitude_target(self, q, rates=(0.0, 0.0, 0.0), thrust: float = 0.5, type_mask: int = 0,
+                        target=(1, 1)) -> None:
+        self.m.mav.set_attitude_target_send(0, target[0], target[1], type_mask, list(q), *rates, thrust)
+
+    def param(self, name: str, timeout: float = 5.0) -> float:
+        self.m.mav.param_request_read_send(1, 1, name.encode(), -1)
+        return self.wait("PARAM_VALUE", lambda p: p.param_id == name, timeout).param_value
+
+    def close(self) -> None:
+        self.m.close()
+
+
+@pytest.fixture
+def client():
+    made: list[Client] = []
+
+    def connect(url: str, source_system: int = 255) -> Client:
+        c = Client(url, source_system)
+        made.append(c)
+        return c
+
+    yield connect
+    for c in made:
+        c.close()
+
+
+def quat_angle_deg(a, b) -> float:
+    dot = abs(sum(x * y for x, y in zip(a, b)))
+    return math.degrees(2 * math.acos(min(1.0, dot)))
