@@ -38,6 +38,14 @@ def parse_address(text: str) -> tuple[str, int]:
     return host or "127.0.0.1", int(port)
 
 
+def parse_param(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got {text!r}") from None
+
+
 def parse_origin(text: str) -> GeoOrigin:
     try:
         lat, lon, alt = (float(x) for x in text.split(","))
@@ -54,7 +62,12 @@ def build(args: argparse.Namespace) -> MavlinkServer:
     ap = Autopilot(vehicle, AutopilotParams(strict_px4=args.flavour == "px4-strict"))
     cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
                        origin=args.origin)
-    return MavlinkServer(ap, cfg)
+    server = MavlinkServer(ap, cfg)
+    for name, value in args.param:
+        reason = server.params.set(name, value)
+        if reason is not None:
+            raise ConfigError("--param", None, "", reason)
+    return server
 
 
 async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) -> None:
@@ -85,6 +98,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="onboard attitude controller")
     ap.add_argument("--flavour", choices=("px4", "px4-strict"), default="px4",
                     help="px4-strict: with an attitude, use only the yaw rate of SET_ATTITUDE_TARGET")
+    ap.add_argument("--param", type=parse_param, action="append", default=[], metavar="NAME=VALUE",
+                    help="set a parameter at start, e.g. SIM_WIND_N=3 SIM_TURB_SIGMA=0.6 SIM_FORCE_X=6 "
+                         "SIM_MASS_FAC=1.3 (repeatable; the full list: PARAM_REQUEST_LIST or docs/sitl.md)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sysid", type=int, default=1)
     ap.add_argument("--origin", type=parse_origin, default=GeoOrigin(), help="LAT,LON,ALT of the local origin")

@@ -244,11 +244,11 @@ class MavlinkServer:
         if command == MAV_CMD_SET_MESSAGE_INTERVAL:
             self._ack(msg, command, self._set_message_interval(params[0], params[1]))
         elif command == MAV_CMD_REQUEST_MESSAGE:
-            self._ack(msg, command, self._request_message(params[0]))
+            self._request_message(msg, command, params[0])
         elif command == MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-            self._ack(msg, command, self._request_message(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION))
+            self._request_message(msg, command, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
         elif command == MAV_CMD_GET_HOME_POSITION:
-            self._ack(msg, command, self._request_message(mavlink.MAVLINK_MSG_ID_HOME_POSITION))
+            self._request_message(msg, command, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
         else:
             result = self.ap.command(command, params, msg.get_srcSystem())
             if result.result != MavResult.ACCEPTED:
@@ -275,12 +275,14 @@ class MavlinkServer:
             return MavResult.DENIED
         return MavResult.ACCEPTED
 
-    def _request_message(self, msg_id: float) -> int:
+    def _request_message(self, msg: Any, command: int, msg_id: float) -> None:
+        """ACK, then the requested message (the order PX4 uses)."""
         if not math.isfinite(msg_id) or int(msg_id) not in self.telemetry.encoders:
             self._reject("request message: cannot send that message")
-            return MavResult.DENIED
+            self._ack(msg, command, MavResult.DENIED)
+            return
+        self._ack(msg, command, MavResult.ACCEPTED)
         self.send(self.telemetry.encoders[int(msg_id)]())
-        return MavResult.ACCEPTED
 
     # --- setpoints -------------------------------------------------------------------------
 

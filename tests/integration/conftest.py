@@ -155,5 +155,7 @@ def client():
 
 
 def quat_angle_deg(a, b) -> float:
-    dot = abs(sum(x * y for x, y in zip(a, b)))
-    return math.degrees(2 * math.acos(min(1.0, dot)))
+    """Rotation angle between two attitudes, accurate near zero (atan2 form, not acos)."""
+    from companion.control import quaternion as quat
+
+    return math.degrees(quat.angle_between(tuple(float(x) for x in a), tuple(float(x) for x in b)))
