@@ -395,6 +395,9 @@ class Autopilot:
         else:
             q_d = prev.q_d if prev else self.vehicle.estimator.q
         self.offboard_attitude = AttitudeSetpoint(q_d, rates, thrust_n)  # type: ignore[arg-type]
+        if use_att != self.offboard_uses_attitude:  # attitude <-> rates: the old integral is meaningless
+            self.vehicle.onboard.controller.reset_integral()
+            self._rate_q = None
         self.offboard_uses_attitude = use_att
         self.offboard_position = None
         return None
@@ -465,8 +468,8 @@ class Autopilot:
             sp = self.offboard_attitude
             if sp is None:
                 return self._idle_setpoint()
-            if not self.offboard_uses_attitude:  # rates only: the attitude error stays zero
-                sp = AttitudeSetpoint(self.vehicle.estimator.q, sp.omega_d_rad_s, sp.thrust_n)
+            if not self.offboard_uses_attitude:
+                sp = AttitudeSetpoint(self._rate_reference(sp.omega_d_rad_s), sp.omega_d_rad_s, sp.thrust_n)
             if self.landed and sp.thrust_n < self.vehicle.hover_thrust_n:
                 self.vehicle.onboard.reset()  # on the ground: no integrator wind-up
             return sp
@@ -483,6 +486,7 @@ class Autopilot:
             if not self._land_phase_home and math.hypot(pos[0] - self.home[0], pos[1] - self.home[1]) < 0.3:
                 self._land_phase_home = True
                 self._enter(Mode.LAND)
+                self.target = (self.home[0], self.home[1], self.target[2])  # land at home, not near it
         if self.landed:
             self.position_loop.reset()  # the ground reaction is not a disturbance to learn
         v = self.vehicle
@@ -491,6 +495,19 @@ class Autopilot:
         ref = self.ref_filter.update(self.target, self.target_yaw, self.pos_dt)
         meas = PositionMeasurement(ms.pos_ned_m, ms.vel_ned_m_s, v.estimator.q, sf_ned)
         return self.position_loop.update(meas, ref, self.pos_dt)
+
+    def _rate_reference(self, omega_d: Vec3) -> tuple:
+        """Rates-only setpoints are flown as an attitude reference integrated from the commanded
+        rates, so the attitude loop's integral keeps its meaning; re-anchored to the estimate if
+        the vehicle falls more than 30 deg behind (saturation), so it cannot run away."""
+        q_est = self.vehicle.estimator.q
+        q_ref = self._rate_q
+        if q_ref is None or quat.angle_between(q_ref, q_est) > math.radians(30.0):
+            q_ref = q_est
+        self._rate_q = quat.integrate(q_ref, omega_d, self.dt)
+        return self._rate_q
+
+    _rate_q: tuple | None = None
 
     def _update_landed(self) -> None:
         ms = self.vehicle.tracked

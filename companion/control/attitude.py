@@ -157,10 +157,15 @@ class AttitudeController:
         self._uses_ism = self.kind == "ism_do"
 
     def reset(self) -> None:
+        self.reset_integral()
+        self.observer.reset()
+
+    def reset_integral(self) -> None:
+        """Restart the sliding mode from the current error (z = -s0) at the next update: for a
+        change of reference type, when the old integral no longer means anything."""
         self.z = ZERO3
         self.s = ZERO3
         self._started = False
-        self.observer.reset()
 
     @property
     def disturbance_estimate_nm(self) -> Vec3:

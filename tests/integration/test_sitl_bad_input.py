@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import random
 import socket
-import time
+
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -80,7 +80,7 @@ def test_bad_input_is_dropped_counted_and_changes_nothing(sitl, client):
     bad = garbage(q_ok, hover, rng)
     raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     got = []
-    for kind, datagrams in bad.items():
+    for datagrams in bad.values():
         for d in datagrams:
             raw.sendto(d, ("127.0.0.1", s.port))
             got += stream(c, q_ok, hover, 0.01, period=0.01)  # keep the valid stream going

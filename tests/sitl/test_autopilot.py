@@ -1,0 +1,116 @@
+"""Autopilot rules without sockets: the firmware logic the MAVLink server exposes."""
+
+import math
+
+import pytest
+
+from companion.control import quaternion as quat
+from sitl.autopilot import Autopilot, AutopilotParams, LandedState, MavResult, Mode
+from sitl.scenario import Scenario
+from sitl.vehicle import SimVehicle
+
+NAN = math.nan
+
+
+def make(**params):
+    v = SimVehicle(Scenario(name="unit"), "ism_do", 1, (0.0, 0.0, 0.0), 0.0, hovering=False)
+    ap = Autopilot(v, AutopilotParams(**params))
+    run(ap, 1.2)
+    return ap
+
+
+def run(ap, seconds):
+    for _ in range(int(round(seconds / ap.dt))):
+        ap.step()
+
+
+def airborne(ap):
+    assert ap.command(400, (1,)).result == MavResult.ACCEPTED
+    assert ap.command(22, (0, 0, 0, 0, NAN, NAN, NAN)).result == MavResult.ACCEPTED
+    run(ap, 4.0)
+    assert ap.mode == Mode.HOLD and not ap.landed
+
+
+def stream(ap, seconds, q=None, thrust=None, sender=255, type_mask=0, rates=(0.0, 0.0, 0.0)):
+    q = q or quat.from_yaw(0.0)
+    thrust = thrust if thrust is not None else 0.63 * 9.81 / ap.vehicle.scenario.vehicle.thrust_max_n
+    for _ in range(int(seconds / 0.02)):
+        assert ap.attitude_target(sender, type_mask, q, rates, thrust) is None
+        run(ap, 0.02)
+
+
+def test_takeoff_reaches_the_takeoff_altitude_and_holds_it():
+    ap = make()
+    airborne(ap)
+    run(ap, 3.0)
+    assert ap.vehicle.state.pos_ned_m[2] == pytest.approx(-2.5, abs=0.05)
+    assert ap.landed_state == LandedState.IN_AIR
+
+
+def test_armed_without_takeoff_disarms_after_the_preflight_timeout():
+    ap = make(disarm_preflight_s=3.0)
+    ap.command(400, (1,))
+    run(ap, 2.5)
+    assert ap.armed
+    run(ap, 1.0)
+    assert not ap.armed and "no take-off" in ap.messages[-1][1]
+
+
+def test_only_the_system_that_took_offboard_control_may_steer():
+    ap = make()
+    airborne(ap)
+    stream(ap, 1.0, sender=200)
+    assert ap.set_mode(Mode.OFFBOARD, sender=200).result == MavResult.ACCEPTED
+    before = ap.offboard_attitude
+    reason = ap.attitude_target(77, 0, quat.from_euler(0.5, 0.0, 0.0), (0.0, 0.0, 0.0), 0.9)
+    assert reason == "setpoint from a system without offboard control"
+    assert ap.offboard_attitude == before
+    assert ap.set_mode(Mode.OFFBOARD, sender=77).result == MavResult.DENIED
+
+
+def test_rates_only_setpoint_turns_the_vehicle_at_the_commanded_rate():
+    """type_mask bit 7: the attitude is ignored, body rates are flown, as an attitude reference
+    integrated from them. A 1 rad/s yaw rate for 1 s turns the reference by exactly 1 rad; the
+    12 rad/s loop has caught up with it within ~0.1 s, so the vehicle has turned 1 +- 0.05 rad."""
+    ap = make()
+    airborne(ap)
+    stream(ap, 1.0)
+    assert ap.set_mode(Mode.OFFBOARD).result == MavResult.ACCEPTED
+    yaw0 = quat.to_euler(ap.vehicle.state.q)[2]
+    stream(ap, 1.0, type_mask=128, rates=(0.0, 0.0, 1.0))
+    turned = quat.to_euler(ap.vehicle.state.q)[2] - yaw0
+    assert abs(turned - 1.0) < 0.05
+
+
+def test_strict_px4_flavour_ignores_roll_and_pitch_rates_with_an_attitude():
+    ap = make(strict_px4=True)
+    ap.attitude_target(255, 0, quat.IDENTITY, (0.5, 0.5, 0.2), 0.3)
+    assert ap.offboard_attitude.omega_d_rad_s == (0.0, 0.0, 0.2)
+    ap2 = make()
+    ap2.attitude_target(255, 0, quat.IDENTITY, (0.5, 0.5, 0.2), 0.3)
+    assert ap2.offboard_attitude.omega_d_rad_s == (0.5, 0.5, 0.2)
+
+
+def test_return_to_launch_flies_home_and_lands():
+    ap = make()
+    airborne(ap)
+    ap.target = (3.0, -2.0, -2.5)  # move away in hold
+    run(ap, 6.0)
+    assert math.hypot(*ap.vehicle.state.pos_ned_m[:2]) > 3.0
+    assert ap.set_mode(Mode.RTL).result == MavResult.ACCEPTED
+    run(ap, 20.0)
+    assert not ap.armed
+    assert math.hypot(*ap.vehicle.state.pos_ned_m[:2]) < 0.1
+
+
+def test_a_mode_change_ends_the_failsafe():
+    ap = make()
+    airborne(ap)
+    stream(ap, 1.0)
+    ap.set_mode(Mode.OFFBOARD)
+    run(ap, 1.5)
+    assert ap.mode == Mode.HOLD and ap.failsafe
+    assert ap.set_mode(Mode.HOLD).result == MavResult.ACCEPTED
+    assert ap.failsafe is None
+    run(ap, 8.0)
+    assert ap.mode == Mode.HOLD and ap.armed  # no landing: the operator took over
