@@ -28,6 +28,7 @@ lint: setup
 
 bench: setup
 	$(PY) benchmarks/bench_simulation.py
+	$(PY) benchmarks/bench_sitl.py
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache

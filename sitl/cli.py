@@ -83,7 +83,7 @@ async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) ->
               flush=True)
     await server.run(stop, duration_s)
     report = {"t": round(server.ap.t, 3), "stats": dict(server.stats), "rejections": dict(server.rejections),
-              "mode": server.ap.mode.name, "armed": server.ap.armed}
+              "mode": server.ap.mode.name, "armed": server.ap.armed, "loop_lateness_ms": server.lateness_ms()}
     print(f"sitl: stopped {json.dumps(report)}", flush=True)
 
 

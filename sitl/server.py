@@ -377,6 +377,14 @@ class MavlinkServer:
         self.send(self.mav.mission_count_encode(msg.get_srcSystem(), msg.get_srcComponent(), 0,
                                                 getattr(msg, "mission_type", 0)))
 
+    def lateness_ms(self) -> dict[str, float]:
+        """Percentiles of how late (wall clock) the loop started steps that were due."""
+        xs = sorted(self.step_lateness_s)
+        if not xs:
+            return {}
+        pick = lambda f: round(1000.0 * xs[min(len(xs) - 1, int(f * len(xs)))], 3)  # noqa: E731
+        return {"p50": pick(0.5), "p99": pick(0.99), "max": round(1000.0 * xs[-1], 3), "n": len(xs)}
+
     # --- running -------------------------------------------------------------------------
 
     async def start(self) -> None:
