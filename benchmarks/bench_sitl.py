@@ -16,7 +16,6 @@ Results and the machine: docs/sitl.md.
 
 from __future__ import annotations
 
-import math
 import statistics
 import sys
 import time
