@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import types
 import typing
 from dataclasses import dataclass
 from typing import Any, Mapping, TypeVar
@@ -180,8 +181,12 @@ T = TypeVar("T")
 
 def _coerce(tp: Any, value: Any, key_path: str) -> Any:
     origin = typing.get_origin(tp)
-    if origin is typing.Union and float in typing.get_args(tp):
-        tp, origin = float, None  # Real: a float in files, a batch array only when built in code
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if float in args:
+            tp, origin = float, None  # Real: a float in files, a batch array only when built in code
+        elif len(args) == 1:  # optional: a file value is the non-None type
+            return _coerce(args[0], value, key_path)
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, Mapping):
             raise ParamError(key_path, f"expected a table, got {value!r}")

@@ -1,0 +1,390 @@
+"""A flight: link, control loop, streamer, watchdog and mission runner under one TaskGroup.
+
+- **reader** (``link.run``): telemetry into :class:`~companion.state.VehicleState`, heartbeats out;
+- **control loop**: a fixed rate *in vehicle time* (sleeps until the vehicle clock reaches the next
+  tick, so it follows the simulated vehicle's speed-up); computes a checked setpoint while the
+  controller is engaged and records a row every tick;
+- **streamer**: sends each new setpoint the moment it exists (and nothing stale);
+- **watchdog**: position or attitude older than ``telemetry_timeout_s`` (vehicle time) -> stop
+  setpoints and tell the autopilot to hold; nothing at all for ``link_lost_s`` (wall) -> the flight
+  ends with :class:`LinkLost`; the autopilot leaving offboard while we fly it -> abort;
+- **mission runner**: the steps; on an interrupt (SIGINT) or an abort it stops streaming, commands
+  hold, then land, and waits for the vehicle to disarm — it never just goes silent in the air.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import datetime
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from companion.control.params import PositionGains
+
+from .link import LinkError, VehicleLink, open_link
+from .mission import Mission, Step
+from .offboard import OffboardController, Setpoint
+from .recorder import FlightRecorder
+from .safety import SetpointGuard
+from .thrust_scale import ThrustScaleEstimator
+
+__all__ = ["FlightOptions", "FlightResult", "Flight", "LinkLost", "MissionAbort", "EXIT_CODES"]
+
+EXIT_CODES = {"completed": 0, "aborted": 1, "link lost": 3, "interrupted": 130}
+
+
+class LinkLost(RuntimeError):
+    """No telemetry from the vehicle for longer than the link-lost bound."""
+
+
+class MissionAbort(RuntimeError):
+    """The mission cannot go on (refused command, offboard left, timeout)."""
+
+
+class _Interrupted(Exception):
+    pass
+
+
+@dataclass
+class FlightOptions:
+    connect: str = "udp://127.0.0.1:14540"
+    backend: str = "pymavlink"
+    controller: str | None = None
+    """overrides the mission's position controller"""
+    rate_hz: float | None = None
+    out_dir: Path = Path("flights")
+    connect_timeout_s: float = 20.0
+    thrust_max_n: float | None = None
+    quiet: bool = False
+
+
+@dataclass
+class FlightResult:
+    result: str
+    message: str
+    folder: Path
+    summary: dict = field(default_factory=dict)
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_CODES.get(self.result, 1)
+
+
+class Flight:
+    def __init__(self, mission: Mission, options: FlightOptions | None = None) -> None:
+        self.mission = mission
+        self.opt = opt = options or FlightOptions()
+        self.controller_name = opt.controller or mission.controller.position
+        self.rate_hz = opt.rate_hz or mission.controller.rate_hz
+        stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+        self.folder = opt.out_dir / f"{stamp}_{mission.name}_{self.controller_name}"
+        n = 1
+        while self.folder.exists():
+            n += 1
+            self.folder = opt.out_dir / f"{stamp}_{mission.name}_{self.controller_name}_{n}"
+        self.recorder = FlightRecorder(self.folder)
+        self.link: VehicleLink = open_link(opt.connect, opt.backend, traffic=self.recorder.traffic)
+        safety = mission.safety
+        self.guard = SetpointGuard(math.radians(safety.max_tilt_deg), math.radians(safety.max_rate_deg_s))
+        self.control: OffboardController | None = None
+        self.engaged = False
+        """the controller computes setpoints (streaming before and during offboard)"""
+        self.expect_offboard = False
+        self.stale = False
+        self.finished = asyncio.Event()
+        self.interrupted = asyncio.Event()
+        self._new_setpoint = asyncio.Event()
+        self._setpoint: Setpoint | None = None
+        self.sent = 0
+        self.rejected = 0
+        self.late_ticks = 0
+        self.tick_periods: list[float] = []
+        """wall-clock spacing of sent setpoints (bounded), for the jitter benchmark"""
+        self._last_sent_wall = math.nan
+        self.failure: str | None = None
+
+    def log(self, text: str) -> None:
+        if not self.opt.quiet:
+            print(f"[{self.link.state.t:8.2f}] {text}", flush=True)
+
+    def interrupt(self) -> None:
+        """SIGINT: the runner holds, lands and disarms; a second one gives up waiting."""
+        if self.interrupted.is_set():
+            self.finished.set()
+        self.interrupted.set()
+
+    # --- running -------------------------------------------------------------------------
+
+    async def run(self) -> FlightResult:
+        result, message = "completed", ""
+        try:
+            async with self.link:
+                try:
+                    async with asyncio.TaskGroup() as tg:
+                        tg.create_task(self.link.run(self.finished))
+                        tg.create_task(self._watchdog())
+                        tg.create_task(self._control_loop())
+                        tg.create_task(self._streamer())
+                        runner = tg.create_task(self._mission())
+                    result, message = runner.result()
+                except* LinkLost as eg:
+                    result, message = "link lost", str(eg.exceptions[0])
+                except* LinkError as eg:
+                    result, message = "aborted", str(eg.exceptions[0])
+        finally:
+            summary = self._summary(result, message)
+            self.recorder.close(summary)
+        return FlightResult(result, message, self.folder, summary)
+
+    async def _watchdog(self) -> None:
+        safety = self.mission.safety
+        hold_requested = False
+        while not self.finished.is_set():
+            await asyncio.sleep(0.02)
+            st = self.link.state
+            now = time.monotonic()
+            if st.sysid and now - st.wall_last > safety.link_lost_s:
+                raise LinkLost(f"vehicle link lost: no telemetry for {now - st.wall_last:.1f} s "
+                               f"(bound {safety.link_lost_s:g} s)")
+            if not self.engaged:
+                self.stale = False
+                continue
+            age = self.link.telemetry_age(now)
+            stale = age > safety.telemetry_timeout_s
+            if stale and not self.stale:
+                self.stale = True
+                self.log(f"telemetry stale ({age:.2f} s): setpoints stopped, holding")
+                if not hold_requested:
+                    hold_requested = True
+                    with contextlib.suppress(LinkError):  # best effort: the link may be what failed
+                        await self.link.hold()
+            self.stale = stale
+
+    async def _control_loop(self) -> None:
+        clock, state = self.link.clock, self.link.state
+        period = 1.0 / self.rate_hz
+        while not clock.ready and not self.finished.is_set():
+            await asyncio.sleep(0.01)
+        t_next = clock.now(time.monotonic())
+        t_prev = t_next - period
+        while not self.finished.is_set():
+            t_next += period
+            await asyncio.sleep(max(0.0, clock.wall_at(t_next) - time.monotonic()))
+            now_v = clock.now(time.monotonic())
+            if now_v - t_next > 5 * period:  # fell behind (a stalled vehicle or machine): resync
+                self.late_ticks += 1
+                t_next = now_v
+            dt = t_next - t_prev
+            t_prev = t_next
+            tick = None
+            if self.engaged and self.control is not None and state.has_navigation and not self.stale:
+                tick = self.control.step(state, t_next, dt)
+                if tick.rejected is None:
+                    self._setpoint = tick.setpoint
+                    self._new_setpoint.set()
+                else:
+                    self.rejected += 1
+                    self.log(f"setpoint rejected: {tick.rejected}")
+            thrust = self.control.thrust if self.control else None
+            self.recorder.row(state, tick, tick is not None and tick.rejected is None,
+                              thrust.thrust_max_n if thrust else math.nan,
+                              thrust.estimated_thrust_max_n if thrust else math.nan)
+
+    async def _streamer(self) -> None:
+        while not self.finished.is_set():
+            try:
+                await asyncio.wait_for(self._new_setpoint.wait(), 0.1)
+            except TimeoutError:
+                continue
+            self._new_setpoint.clear()
+            sp = self._setpoint
+            if sp is None or not self.engaged or self.stale:
+                continue
+            self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust)
+            self.sent += 1
+            now = time.monotonic()
+            if math.isfinite(self._last_sent_wall):
+                self.tick_periods.append(now - self._last_sent_wall)
+                if len(self.tick_periods) > 100_000:
+                    del self.tick_periods[:50_000]
+            self._last_sent_wall = now
+
+    # --- mission -------------------------------------------------------------------------
+
+    async def _until(self, cond, timeout_v: float, what: str) -> None:  # type: ignore[no-untyped-def]
+        """Wait until ``cond()`` (checked every 10 ms wall), at most ``timeout_v`` vehicle seconds.
+        Raises on interrupt, on leaving offboard while expected, and on timeout."""
+        clock = self.link.clock
+        start = clock.now(time.monotonic())
+        while True:
+            if self.interrupted.is_set():
+                raise _Interrupted()
+            if self.expect_offboard and not self.link.state.offboard:
+                raise MissionAbort(f"the autopilot left offboard (mode {self.link.state.mode})")
+            if cond():
+                return
+            if clock.now(time.monotonic()) - start > timeout_v:
+                raise MissionAbort(f"timeout: {what} not within {timeout_v:g} s")
+            await asyncio.sleep(0.01)
+
+    async def _sleep_v(self, seconds: float) -> None:
+        clock = self.link.clock
+        end = clock.now(time.monotonic()) + seconds
+        await self._until(lambda: clock.now(time.monotonic()) >= end, seconds + 5.0, "wait")
+
+    async def _mission(self) -> tuple[str, str]:
+        link, m = self.link, self.mission
+        try:
+            self.log(f"connecting to {self.opt.connect} ({self.opt.backend})")
+            await link.wait_connected(self.opt.connect_timeout_s)
+            self.log(f"connected: {link.state.autopilot} system {link.state.sysid}, mode {link.state.mode}")
+            await self._make_controller()
+            for i, step in enumerate(m.steps):
+                self.recorder.begin(i, step.name, step.action, link.state.t)
+                self.log(f"step {step.name}")
+                await self._step(step)
+            self.recorder.end(link.state.t)
+            return "completed", f"mission {m.name} completed"
+        except _Interrupted:
+            self.recorder.end(link.state.t, False, "interrupted")
+            self.log("interrupted: holding, then landing")
+            await self._recover()
+            return "interrupted", "interrupted by the operator; landed and disarmed" if not link.state.armed else \
+                "interrupted by the operator"
+        except (MissionAbort, LinkError) as exc:
+            self.recorder.end(link.state.t, False, str(exc))
+            self.log(f"aborted: {exc}")
+            self.failure = str(exc)
+            if link.state.sysid and time.monotonic() - link.state.wall_last < m.safety.link_lost_s:
+                await self._recover(leave_to_autopilot=not link.state.offboard and self.expect_offboard)
+            return "aborted", str(exc)
+        finally:
+            self.engaged = False
+            self.finished.set()
+
+    async def _recover(self, leave_to_autopilot: bool = False) -> None:
+        """Stop streaming; hold; land; wait until disarmed. If the autopilot left offboard by itself
+        (a failsafe, or a pilot), it is in charge: only wait for it to land."""
+        self.engaged = False
+        self.expect_offboard = False
+        link = self.link
+        if not link.state.armed:
+            return
+        with contextlib.suppress(LinkError):
+            if not leave_to_autopilot:
+                await link.hold()
+                await asyncio.sleep(0.5 / max(link.clock.rate, 1e-3))
+                await link.land()
+        self.interrupted.clear()
+        with contextlib.suppress(MissionAbort, _Interrupted):
+            await self._until(lambda: not link.state.armed, 120.0, "disarm after landing")
+
+    async def _make_controller(self) -> None:
+        m, link = self.mission, self.link
+        t_max = self.opt.thrust_max_n or m.thrust.thrust_max_n
+        source = "configuration"
+        if not t_max:
+            sim = await link.get_param("SIM_THRUST_MAX")
+            if sim:
+                t_max, source = sim, "vehicle SIM_THRUST_MAX"
+        if not t_max:
+            for name in ("MPC_THR_HOVER", "MOT_THST_HOVER"):
+                hover = await link.get_param(name)
+                if hover:
+                    t_max, source = m.vehicle.weight_n / hover, f"vehicle {name} = {hover:.3f}"
+                    break
+        if not t_max and m.thrust.hover_throttle:
+            t_max, source = m.vehicle.weight_n / m.thrust.hover_throttle, "mission hover_throttle"
+        if not t_max:
+            raise MissionAbort("no thrust scale: set [thrust] thrust_max_n or hover_throttle in the mission")
+        self.log(f"thrust scale {t_max:.2f} N at full throttle ({source})")
+        gains = m.gains
+        if self.link.state.specific_force_body_m_s2 is None:
+            gains = dataclasses.replace(gains, observer_uses_imu=False)
+            self.log("no HIGHRES_IMU: the force observer falls back to differentiated velocity")
+        # the controller clamps to the safety limits itself (the guard is the last line, and a
+        # rejected setpoint is a missing one): tilt 1 deg and rate 1% inside the guard's bounds
+        reference = dataclasses.replace(
+            m.reference,
+            tilt_max_rad=min(m.reference.tilt_max_rad, math.radians(m.safety.max_tilt_deg - 1.0)),
+            rate_limit_rad_s=min(m.reference.rate_limit_rad_s, 0.99 * math.radians(m.safety.max_rate_deg_s)),
+        )
+        self.control = OffboardController(
+            self.controller_name, m.vehicle, gains if isinstance(gains, PositionGains) else PositionGains(),
+            reference, m.trajectory, ThrustScaleEstimator(t_max, adapt=m.thrust.adapt),
+            self.guard, estimate_thrust=m.thrust.estimate,
+        )
+
+    async def _step(self, s: Step) -> None:
+        link, st = self.link, self.link.state
+        c = self.control
+        assert c is not None
+        if s.action == "takeoff":
+            if not st.armed:
+                await link.arm()
+            ground = st.pos_ned_m[2]
+            await link.takeoff(s.altitude_m)
+            target = ground - s.altitude_m
+            await self._until(lambda: abs(st.pos_ned_m[2] - target) < 0.15 and st.mode not in ("TAKEOFF",),
+                              s.timeout_s, f"take-off to {s.altitude_m:g} m")
+        elif s.action == "offboard":
+            c.start(st)
+            self.engaged = True
+            await self._sleep_v(1.2)  # setpoints flow for > 1 s at > 2 Hz before the switch (PX4)
+            await link.start_offboard()
+            await self._until(lambda: st.offboard, s.timeout_s, "offboard mode")
+            self.expect_offboard = True
+        elif s.action == "hold":
+            if s.position_ned_m is not None:
+                c.set_target(s.position_ned_m, math.radians(s.yaw_deg) if s.yaw_deg is not None else None)
+            elif s.yaw_deg is not None:
+                c.set_target(c.target, math.radians(s.yaw_deg))
+            await self._sleep_v(s.duration_s)
+        elif s.action == "goto":
+            for wp in s.waypoints:
+                c.set_target(wp, speed_m_s=s.speed_m_s)
+                await self._until(lambda wp=wp: c.reference_at_target and math.dist(st.pos_ned_m, wp) < s.tolerance_m,
+                                  s.timeout_s, f"waypoint {wp}")
+                if s.hold_s > 0:
+                    await self._sleep_v(s.hold_s)
+        elif s.action == "set_param":
+            if s.sim_only and await link.get_param(s.param) is None:
+                self.log(f"{s.param}: no such parameter on this vehicle (sim_only step skipped)")
+                return
+            echoed = await link.set_param(s.param, s.value)
+            if abs(echoed - s.value) > 1e-6 * max(1.0, abs(s.value)):
+                raise MissionAbort(f"{s.param} = {s.value:g} refused (vehicle keeps {echoed:g})")
+        elif s.action == "wait":
+            await self._sleep_v(s.duration_s)
+        elif s.action == "land":
+            self.expect_offboard = False
+            if st.armed:
+                await link.land()
+                self.engaged = False
+                await self._until(lambda: not st.armed, s.timeout_s, "landing and disarm")
+
+    # --- summary -------------------------------------------------------------------------
+
+    def _summary(self, result: str, message: str) -> dict:
+        thrust = self.control.thrust if self.control else None
+        periods = sorted(self.tick_periods)
+        jitter = {}
+        if len(periods) > 10:
+            med = periods[len(periods) // 2]
+            jitter = {"median_period_ms": 1000 * med,
+                      "p99_abs_jitter_ms": 1000 * sorted(abs(p - med) for p in periods)[int(0.99 * len(periods))]}
+        return {
+            "mission": self.mission.name, "result": result, "message": message,
+            "controller": self.controller_name, "rate_hz": self.rate_hz, "backend": self.opt.backend,
+            "autopilot": self.link.state.autopilot, "setpoints_sent": self.sent,
+            "setpoints_rejected": self.rejected, "late_ticks": self.late_ticks,
+            "thrust_max_n": thrust.thrust_max_n if thrust else None,
+            "thrust_max_est_n": thrust.estimated_thrust_max_n if thrust else None,
+            "vehicle_clock_rate": self.link.clock.rate, "setpoint_timing": jitter,
+            "link_stats": dict(getattr(self.link, "stats", {})),
+        }
+

@@ -1,0 +1,119 @@
+"""``companion``: fly a mission offboard, re-draw a flight's plots, or check a mission file.
+
+    companion fly missions/hover45.toml --connect udp://127.0.0.1:14540 --controller ism_do
+    companion fly missions/waypoints.toml --connect udpin://0.0.0.0:14540      # PX4 SITL
+    companion plot flights/20261122-120000_hover45_ism_do
+    companion check missions/*.toml
+    companion demo                     # start the bundled vehicle, fly hover45 and waypoints
+
+Exit codes: 0 completed, 1 aborted (refused command, offboard left, timeout), 2 bad mission file
+or arguments, 3 vehicle link lost, 130 interrupted (after holding, landing and disarming).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import signal
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from companion.config import ConfigError
+
+__all__ = ["main"]
+
+
+def _fly(args: argparse.Namespace) -> int:
+    from .app import Flight, FlightOptions
+    from .mission import load_mission
+
+    try:
+        mission = load_mission(args.mission)
+    except ConfigError as exc:
+        print(f"companion: error: {exc}", file=sys.stderr)
+        return 2
+    opts = FlightOptions(connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
+                         out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet)
+    return asyncio.run(_run_flight(Flight(mission, opts), plots=not args.no_plots))
+
+
+async def _run_flight(flight, plots: bool) -> int:  # type: ignore[no-untyped-def]
+    loop = asyncio.get_running_loop()
+    loop.add_signal_handler(signal.SIGINT, flight.interrupt)
+    loop.add_signal_handler(signal.SIGTERM, flight.interrupt)
+    result = await flight.run()
+    print((flight.folder / "summary.md").read_text())
+    if plots:
+        from .plots import draw_flight
+
+        for p in draw_flight(flight.folder):
+            print(f"plot: {p}")
+    stream = sys.stdout if result.exit_code == 0 else sys.stderr
+    print(f"companion: {result.result}: {result.message} -> {flight.folder}", file=stream, flush=True)
+    return result.exit_code
+
+
+def _plot(args: argparse.Namespace) -> int:
+    from .plots import draw_flight
+
+    folder = Path(args.flight)
+    if not (folder / "timeseries.csv").exists():
+        print(f"companion: error: {folder} is not a flight folder (no timeseries.csv)", file=sys.stderr)
+        return 2
+    for p in draw_flight(folder):
+        print(p)
+    return 0
+
+
+def _check(args: argparse.Namespace) -> int:
+    from .mission import load_mission
+
+    status = 0
+    for name in args.missions:
+        try:
+            m = load_mission(name)
+            print(f"{name}: ok ({len(m.steps)} steps, {m.controller.position} at {m.controller.rate_hz:g} Hz)")
+        except ConfigError as exc:
+            print(f"companion: error: {exc}", file=sys.stderr)
+            status = 2
+    return status
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from .demo import run_demo
+
+    return run_demo(out_dir=Path(args.out), speedup=args.speedup, controller=args.controller)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="companion", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="command", required=True)
+    fly = sub.add_parser("fly", help="fly a mission file")
+    fly.add_argument("mission", help="mission file (.toml, or a QGroundControl .plan)")
+    fly.add_argument("--connect", default="udp://127.0.0.1:14540",
+                     help="udp://HOST:PORT (vehicle listens) or udpin://HOST:PORT (vehicle sends first)")
+    fly.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc"), help="position controller")
+    fly.add_argument("--rate", type=float, help="control rate in vehicle Hz (10..250)")
+    fly.add_argument("--backend", choices=("pymavlink", "mavsdk"), default="pymavlink")
+    fly.add_argument("--thrust-max", type=float, help="thrust at full throttle [N] (default: ask the vehicle)")
+    fly.add_argument("--out", default="flights", help="folder for flight records")
+    fly.add_argument("--no-plots", action="store_true")
+    fly.add_argument("--quiet", action="store_true")
+    fly.set_defaults(func=_fly)
+    plot = sub.add_parser("plot", help="re-draw a flight's plots")
+    plot.add_argument("flight")
+    plot.set_defaults(func=_plot)
+    check = sub.add_parser("check", help="validate mission files")
+    check.add_argument("missions", nargs="+")
+    check.set_defaults(func=_check)
+    demo = sub.add_parser("demo", help="fly hover45 and waypoints against the bundled simulated vehicle")
+    demo.add_argument("--out", default="flights")
+    demo.add_argument("--speedup", type=float, default=4.0)
+    demo.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc"), default="ism_do")
+    demo.set_defaults(func=_demo)
+    args = ap.parse_args(argv)
+    if getattr(args, "rate", None) is not None and not 10.0 <= args.rate <= 250.0:
+        ap.error("--rate must be within 10..250 Hz")
+    return int(args.func(args))

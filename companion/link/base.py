@@ -1,0 +1,119 @@
+"""The one interface the companion uses to talk to an autopilot, whatever the backend."""
+
+from __future__ import annotations
+
+import abc
+import asyncio
+import math
+from typing import Callable
+
+from companion.clock import VehicleClock
+from companion.control.quaternion import Quat
+from companion.control.vector import Vec3
+from companion.state import VehicleState
+
+from .flavour import Flavour
+
+__all__ = ["LinkError", "VehicleLink", "TrafficHook", "open_link", "parse_url"]
+
+TrafficHook = Callable[[bytes], None]
+"""called with every raw datagram sent or received (for the .tlog)"""
+
+
+class LinkError(RuntimeError):
+    """The vehicle did not answer, refused, or went away."""
+
+
+def parse_url(url: str) -> tuple[str, str, int]:
+    """``udp://HOST:PORT`` / ``udpout://HOST:PORT`` (send to a vehicle that listens there) or
+    ``udpin://HOST:PORT`` (listen there for a vehicle that sends first, as PX4 SITL does)."""
+    scheme, sep, rest = url.partition("://")
+    if not sep:
+        scheme, rest = "udp", url
+    host, _, port = rest.rpartition(":")
+    if scheme not in ("udp", "udpout", "udpin") or not port.isdigit():
+        raise ValueError(f"expected udp://HOST:PORT, udpout://HOST:PORT or udpin://HOST:PORT, got {url!r}")
+    return ("in" if scheme == "udpin" else "out"), host or "127.0.0.1", int(port)
+
+
+class VehicleLink(abc.ABC):
+    """A connection to one autopilot. ``state`` and ``clock`` are kept up to date by :meth:`run`."""
+
+    state: VehicleState
+    clock: VehicleClock
+    flavour: Flavour | None
+
+    @abc.abstractmethod
+    async def open(self) -> None: ...
+
+    @abc.abstractmethod
+    async def close(self) -> None: ...
+
+    @abc.abstractmethod
+    async def run(self, stop: asyncio.Event) -> None:
+        """Read telemetry and keep the link alive (heartbeats) until ``stop`` is set."""
+
+    @abc.abstractmethod
+    async def wait_connected(self, timeout_s: float) -> None:
+        """Until an autopilot's heartbeat and navigation telemetry arrive; LinkError on timeout."""
+
+    @abc.abstractmethod
+    async def arm(self) -> None: ...
+
+    @abc.abstractmethod
+    async def disarm(self, force: bool = False) -> None: ...
+
+    @abc.abstractmethod
+    async def takeoff(self, altitude_m: float) -> None: ...
+
+    @abc.abstractmethod
+    async def start_offboard(self) -> None:
+        """Switch to the mode that flies attitude setpoints (PX4 OFFBOARD, ArduPilot GUIDED)."""
+
+    @abc.abstractmethod
+    async def hold(self) -> None: ...
+
+    @abc.abstractmethod
+    async def land(self) -> None: ...
+
+    @abc.abstractmethod
+    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float) -> None:
+        """SET_ATTITUDE_TARGET with quaternion, body rates and normalised thrust, now (no await)."""
+
+    @abc.abstractmethod
+    async def get_param(self, name: str) -> float | None:
+        """The parameter's value, or None if the vehicle has no such parameter."""
+
+    @abc.abstractmethod
+    async def set_param(self, name: str, value: float) -> float:
+        """Write and return the value the vehicle echoes (LinkError if it never answers)."""
+
+    async def __aenter__(self) -> VehicleLink:
+        await self.open()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    @property
+    def in_offboard(self) -> bool:
+        return self.state.offboard
+
+    def telemetry_age(self, wall_t: float) -> float:
+        """Vehicle seconds since the older of position and attitude (inf before any)."""
+        t = min(self.state.t_pos, self.state.t_att)
+        return math.inf if not math.isfinite(t) else self.clock.age(t, wall_t)
+
+
+def open_link(
+    url: str, backend: str = "pymavlink", traffic: TrafficHook | None = None, **options: object
+) -> VehicleLink:
+    if backend == "pymavlink":
+        from .pymavlink_link import PymavlinkLink
+
+        return PymavlinkLink(url, traffic=traffic, **options)  # type: ignore[arg-type]
+    if backend == "mavsdk":
+        from .mavsdk_link import MavsdkLink
+
+        return MavsdkLink(url, traffic=traffic, **options)  # type: ignore[arg-type]
+    raise ValueError(f"unknown backend {backend!r}; expected pymavlink or mavsdk")

@@ -1,0 +1,338 @@
+"""MAVLink on the wire with pymavlink, over asyncio UDP: PX4 and ArduPilot.
+
+Datagrams go from the socket callback into a bounded queue (full: dropped and counted, never
+grown) and are parsed by :meth:`PymavlinkLink.run`, one datagram at a time. Only messages from
+the autopilot this link locked on to (the first autopilot heartbeat) update the state. Commands
+are sent as COMMAND_LONG and retried until their COMMAND_ACK arrives. Every datagram, in and
+out, is handed to the ``traffic`` hook for the flight's ``.tlog``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+from collections import Counter
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from companion.clock import VehicleClock
+from companion.control.quaternion import Quat
+from companion.control.vector import Vec3
+from companion.state import VehicleState
+
+from .base import LinkError, TrafficHook, VehicleLink, parse_url
+from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
+
+__all__ = ["PymavlinkLink"]
+
+QUEUE_SIZE = 2000
+_INITIAL_EXPECTED_LENGTH = mavlink.MAVLink(None).expected_length
+
+# telemetry the controller needs, and how often (Hz); asked for at connection
+STREAM_RATES_HZ = {
+    mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 100.0,
+    mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 60.0,
+    mavlink.MAVLINK_MSG_ID_HIGHRES_IMU: 100.0,
+    mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 5.0,
+}
+
+
+class _Protocol(asyncio.DatagramProtocol):
+    def __init__(self, link: PymavlinkLink) -> None:
+        self.link = link
+
+    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        self.link._received(data, addr)
+
+    def error_received(self, exc: Exception) -> None:
+        self.link.stats["socket_errors"] += 1
+
+
+class PymavlinkLink(VehicleLink):
+    def __init__(self, url: str, traffic: TrafficHook | None = None, sysid: int = 255, compid: int = 191,
+                 command_timeout_s: float = 1.0, command_retries: int = 3) -> None:
+        self.direction, host, port = parse_url(url)
+        self.address = (host, port)
+        self.traffic = traffic
+        self.state = VehicleState()
+        self.clock = VehicleClock()
+        self.flavour: Flavour | None = None
+        self.stats: Counter[str] = Counter()
+        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        self.parser = mavlink.MAVLink(None)
+        self.parser.robust_parsing = True
+        self.command_timeout_s = command_timeout_s
+        self.command_retries = command_retries
+        self._transport: asyncio.DatagramTransport | None = None
+        self._peer: tuple[str, int] | None = self.address if self.direction == "out" else None
+        self._queue: asyncio.Queue[bytes] = asyncio.Queue(maxsize=QUEUE_SIZE)
+        self._acks: dict[int, asyncio.Future[int]] = {}
+        self._params: dict[str, asyncio.Future[float]] = {}
+        self._connected = asyncio.Event()
+        self._closed = False
+
+    # --- transport -------------------------------------------------------------------------
+
+    async def open(self) -> None:
+        loop = asyncio.get_running_loop()
+        local = self.address if self.direction == "in" else ("0.0.0.0", 0)
+        try:
+            transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(self), local_addr=local)
+        except OSError as exc:
+            raise LinkError(f"cannot open UDP {local[0]}:{local[1]}: {exc.strerror or exc}") from None
+        self._transport = transport  # type: ignore[assignment]
+        self._send(self.mav.heartbeat_encode(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID,
+                                             0, 0, mavlink.MAV_STATE_ACTIVE))
+
+    async def close(self) -> None:
+        self._closed = True
+        if self._transport is not None:
+            self._transport.close()
+            self._transport = None
+        for fut in [*self._acks.values(), *self._params.values()]:
+            if not fut.done():
+                fut.cancel()
+
+    def _send(self, msg: Any) -> None:
+        if self._transport is None or self._peer is None:
+            return
+        buf = msg.pack(self.mav)
+        self._transport.sendto(buf, self._peer)
+        self.stats["sent"] += 1
+        if self.traffic is not None:
+            self.traffic(buf)
+
+    def _received(self, data: bytes, addr: tuple[str, int]) -> None:
+        if self._peer is None:
+            self._peer = addr  # udpin: whoever talks first is the vehicle
+        elif addr != self._peer:
+            self.stats["foreign_datagrams"] += 1
+            return
+        try:
+            self._queue.put_nowait(data)
+        except asyncio.QueueFull:
+            self.stats["dropped_queue_full"] += 1
+
+    # --- reading ---------------------------------------------------------------------------
+
+    async def run(self, stop: asyncio.Event) -> None:
+        heartbeat_next = 0.0
+        while not self._closed and not stop.is_set():
+            try:
+                data = await asyncio.wait_for(self._queue.get(), timeout=0.2)
+            except TimeoutError:
+                data = None
+            now = time.monotonic()
+            if data is not None:
+                if self.traffic is not None:
+                    self.traffic(data)
+                self._parse(data, now)
+            if now >= heartbeat_next:
+                self._send(self.mav.heartbeat_encode(mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+                                                     mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
+                heartbeat_next = now + 1.0
+
+    def _parse(self, data: bytes, wall: float) -> None:
+        p = self.parser
+        p.buf = bytearray()
+        p.buf_index = 0
+        p.expected_length = _INITIAL_EXPECTED_LENGTH
+        p.have_prefix_error = False
+        try:
+            msgs = p.parse_buffer(data) or []
+        except Exception:
+            self.stats["bad_data"] += 1
+            return
+        for msg in msgs:
+            kind = msg.get_type()
+            if kind in ("BAD_DATA", "BAD_SIGNATURE"):
+                self.stats["bad_data"] += 1
+                continue
+            try:
+                self._handle(kind, msg, wall)
+            except Exception:  # a malformed field must not stop the reader
+                self.stats["handler_errors"] += 1
+
+    def _handle(self, kind: str, msg: Any, wall: float) -> None:
+        st = self.state
+        src = msg.get_srcSystem()
+        if kind == "HEARTBEAT":
+            flavour = flavour_for(msg.autopilot)
+            if flavour is None:
+                return  # a ground station or a component that is not an autopilot
+            if st.sysid == 0:
+                st.sysid, st.compid, st.autopilot = src, msg.get_srcComponent(), flavour.name
+                self.flavour = flavour
+            if src != st.sysid or msg.get_srcComponent() != st.compid:
+                return
+            st.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+            st.mode = flavour.mode_name(msg.custom_mode)
+            st.offboard = st.mode in flavour.offboard_names
+            st.wall_heartbeat = wall
+            st.wall_last = wall
+            if not self._connected.is_set():
+                self._connected.set()
+            return
+        if st.sysid == 0 or src != st.sysid:
+            self.stats["foreign_messages"] += 1
+            return
+        st.wall_last = wall
+        if kind == "ATTITUDE_QUATERNION":
+            t = msg.time_boot_ms * 1e-3
+            st.q = (msg.q1, msg.q2, msg.q3, msg.q4)
+            st.omega_rad_s = (msg.rollspeed, msg.pitchspeed, msg.yawspeed)
+            st.t_att, st.wall_att = t, wall
+            self.clock.observe(t, wall)
+        elif kind == "LOCAL_POSITION_NED":
+            t = msg.time_boot_ms * 1e-3
+            st.pos_ned_m = (msg.x, msg.y, msg.z)
+            st.vel_ned_m_s = (msg.vx, msg.vy, msg.vz)
+            st.t_pos, st.wall_pos = t, wall
+            self.clock.observe(t, wall)
+        elif kind == "HIGHRES_IMU":
+            if msg.fields_updated & 0x7 == 0x7:
+                t = msg.time_usec * 1e-6
+                st.specific_force_body_m_s2 = (msg.xacc, msg.yacc, msg.zacc)
+                st.t_imu, st.wall_imu = t, wall
+                self.clock.observe(t, wall)
+        elif kind == "EXTENDED_SYS_STATE":
+            st.landed_state = msg.landed_state
+        elif kind == "STATUSTEXT":
+            st.statustexts.append((msg.severity, msg.text))
+        elif kind == "COMMAND_ACK":
+            fut = self._acks.get(msg.command)
+            if fut is not None and not fut.done() and msg.result != mavlink.MAV_RESULT_IN_PROGRESS:
+                fut.set_result(msg.result)
+        elif kind == "PARAM_VALUE":
+            name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode("ascii", "replace")
+            name = name.split("\x00", 1)[0]
+            st.params[name] = msg.param_value
+            fut = self._params.get(name)
+            if fut is not None and not fut.done():
+                fut.set_result(msg.param_value)
+
+    # --- connection ----------------------------------------------------------------------
+
+    async def wait_connected(self, timeout_s: float) -> None:
+        try:
+            await asyncio.wait_for(self._connected.wait(), timeout_s)
+        except TimeoutError:
+            raise LinkError(f"no autopilot heartbeat from {self.address[0]}:{self.address[1]} "
+                            f"within {timeout_s:g} s") from None
+        assert self.flavour is not None
+        if self.flavour is ARDUPILOT:
+            await self._prepare_ardupilot()
+        for msg_id, hz in STREAM_RATES_HZ.items():
+            await self.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz, require_ack=False)
+        end = time.monotonic() + timeout_s
+        while not self.state.has_navigation:
+            if time.monotonic() > end:
+                raise LinkError("the autopilot sends no position and attitude (LOCAL_POSITION_NED, "
+                                "ATTITUDE_QUATERNION)")
+            await asyncio.sleep(0.05)
+
+    async def _prepare_ardupilot(self) -> None:
+        """ArduPilot sends nothing until asked; thrust must mean throttle (GUID_OPTIONS bit 3)."""
+        self._send(self.mav.request_data_stream_encode(self.state.sysid, self.state.compid, 0, 10, 1))
+        options = await self.get_param("GUID_OPTIONS")
+        if options is not None and not int(options) & 8:
+            await self.set_param("GUID_OPTIONS", float(int(options) | 8))
+
+    # --- commands --------------------------------------------------------------------------
+
+    async def command_long(self, command: int, *params: float, require_ack: bool = True) -> int:
+        """Send until acknowledged; the MAV_RESULT (LinkError if never acknowledged)."""
+        p = list(params) + [0.0] * (7 - len(params))
+        target = (self.state.sysid or 1, self.state.compid or 1)
+        loop = asyncio.get_running_loop()
+        fut: asyncio.Future[int] = loop.create_future()
+        self._acks[command] = fut
+        try:
+            for attempt in range(self.command_retries):
+                self._send(self.mav.command_long_encode(*target, command, attempt, *p))
+                try:
+                    return await asyncio.wait_for(asyncio.shield(fut), self.command_timeout_s)
+                except TimeoutError:
+                    continue
+        finally:
+            self._acks.pop(command, None)
+        if not require_ack:
+            return -1
+        raise LinkError(f"command {command} was not acknowledged after {self.command_retries} tries")
+
+    async def _expect(self, command: int, *params: float, what: str) -> None:
+        result = await self.command_long(command, *params)
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            reason = self.state.statustexts[-1][1] if self.state.statustexts else ""
+            raise LinkError(f"{what} refused (MAV_RESULT {result}){': ' + reason if reason else ''}")
+
+    async def _set_mode(self, mode: tuple[int, int], what: str) -> None:
+        await self._expect(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, *mode, what=what)
+
+    async def arm(self) -> None:
+        if self.flavour is ARDUPILOT:
+            await self._set_mode(ARDUPILOT.offboard_mode, "GUIDED mode")
+        await self._expect(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, what="arming")
+
+    async def disarm(self, force: bool = False) -> None:
+        await self._expect(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 21196 if force else 0, what="disarming")
+
+    async def takeoff(self, altitude_m: float) -> None:
+        if self.flavour is PX4:
+            if await self.get_param("MIS_TAKEOFF_ALT") is not None:
+                await self.set_param("MIS_TAKEOFF_ALT", altitude_m)
+            await self._expect(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, math.nan,
+                               what="take-off")
+        else:
+            await self._expect(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, altitude_m, what="take-off")
+
+    async def start_offboard(self) -> None:
+        assert self.flavour is not None
+        await self._set_mode(self.flavour.offboard_mode, "offboard mode")
+
+    async def hold(self) -> None:
+        assert self.flavour is not None
+        await self._set_mode(self.flavour.hold_mode, "hold mode")
+
+    async def land(self) -> None:
+        assert self.flavour is not None
+        await self._set_mode(self.flavour.land_mode, "land mode")
+
+    # --- setpoints and parameters ----------------------------------------------------------
+
+    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float) -> None:
+        t_ms = int(max(self.state.t, 0.0) * 1000) & 0xFFFFFFFF
+        self._send(self.mav.set_attitude_target_encode(
+            t_ms, self.state.sysid or 1, self.state.compid or 1, 0, [float(c) for c in q],
+            float(body_rates_rad_s[0]), float(body_rates_rad_s[1]), float(body_rates_rad_s[2]), float(thrust)))
+        self.stats["setpoints"] += 1
+
+    async def _param(self, name: str, send: Any, timeout_s: float = 1.0, retries: int = 3) -> float | None:
+        loop = asyncio.get_running_loop()
+        fut: asyncio.Future[float] = loop.create_future()
+        self._params[name] = fut
+        try:
+            for _ in range(retries):
+                send()
+                try:
+                    return await asyncio.wait_for(asyncio.shield(fut), timeout_s)
+                except TimeoutError:
+                    continue
+        finally:
+            self._params.pop(name, None)
+        return None
+
+    async def get_param(self, name: str) -> float | None:
+        target = (self.state.sysid or 1, self.state.compid or 1)
+        return await self._param(name, lambda: self._send(
+            self.mav.param_request_read_encode(*target, name.encode("ascii"), -1)))
+
+    async def set_param(self, name: str, value: float) -> float:
+        target = (self.state.sysid or 1, self.state.compid or 1)
+        echoed = await self._param(name, lambda: self._send(self.mav.param_set_encode(
+            *target, name.encode("ascii"), float(value), mavlink.MAV_PARAM_TYPE_REAL32)))
+        if echoed is None:
+            raise LinkError(f"parameter {name} was not acknowledged")
+        return echoed

@@ -1,0 +1,106 @@
+"""One tick of offboard control: telemetry in, a checked SET_ATTITUDE_TARGET out.
+
+The position loop of the control core (:class:`~companion.control.PositionLoop`: position
+controller, force limits, (32)-(34)) runs on the newest telemetry; the reference comes from the
+velocity-limited waypoint filter; newtons become normalised thrust through the (online
+estimated) thrust scale; the guard checks the result. No I/O here: the app sends it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from companion.control import quaternion as quat
+from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
+from companion.control.params import PositionGains, ReferenceParams, TrajectoryParams, VehicleParams
+from companion.control.trajectory import PositionReference, ReferenceFilter
+from companion.control.vector import Vec3
+
+from .safety import SetpointGuard
+from .state import VehicleState
+from .thrust_scale import ThrustScaleEstimator
+
+__all__ = ["Setpoint", "Tick", "OffboardController"]
+
+
+class Setpoint(NamedTuple):
+    """What goes on the wire: attitude (body to NED), body rates, normalised thrust."""
+
+    q: tuple[float, float, float, float]
+    body_rates_rad_s: Vec3
+    thrust: float
+
+
+class Tick(NamedTuple):
+    """Everything one control tick computed, for the flight record."""
+
+    t: float
+    reference: PositionReference
+    attitude: AttitudeSetpoint
+    force_n: Vec3
+    estimate_n: Vec3
+    setpoint: Setpoint
+    rejected: str | None
+
+
+@dataclass
+class OffboardController:
+    controller: str
+    vehicle: VehicleParams
+    gains: PositionGains
+    reference: ReferenceParams
+    trajectory: TrajectoryParams
+    thrust: ThrustScaleEstimator
+    guard: SetpointGuard
+    estimate_thrust: bool = True
+
+    def __post_init__(self) -> None:
+        self.loop = PositionLoop.create(self.controller, self.vehicle, self.gains, self.reference)
+        self.filter: ReferenceFilter | None = None
+        self.target: Vec3 = (0.0, 0.0, 0.0)
+        self.target_yaw = 0.0
+        self.speed_m_s = self.trajectory.max_speed_m_s
+
+    def start(self, state: VehicleState) -> None:
+        """Begin where the vehicle is, moving as it moves, with its current thrust as the observer's
+        'applied' thrust (hover)."""
+        yaw = float(quat.to_euler(state.q)[2])
+        self.filter = ReferenceFilter(self.trajectory, state.pos_ned_m, yaw, state.vel_ned_m_s)
+        self.target, self.target_yaw = state.pos_ned_m, yaw
+        self.loop.reset()
+        self.loop.thrust_n = self.vehicle.weight_n
+
+    def set_target(self, pos_ned_m: Vec3, yaw_rad: float | None = None, speed_m_s: float | None = None) -> None:
+        self.target = pos_ned_m
+        if yaw_rad is not None:
+            self.target_yaw = yaw_rad
+        speed = speed_m_s if speed_m_s is not None else self.trajectory.max_speed_m_s
+        if self.filter is not None and speed != self.filter.params.max_speed_m_s:
+            self.filter.params = dataclasses.replace(self.filter.params, max_speed_m_s=speed)
+
+    @property
+    def reference_at_target(self) -> bool:
+        f = self.filter
+        if f is None:
+            return False
+        d = math.dist(f.pos_ned_m, self.target)
+        return d < 1e-3 and math.hypot(*f.vel_ned_m_s) < 1e-3
+
+    def step(self, state: VehicleState, t: float, dt_s: float) -> Tick:
+        assert self.filter is not None, "start() first"
+        ref = self.filter.update(self.target, self.target_yaw, dt_s)
+        sf = state.specific_force_body_m_s2 if self.gains.observer_uses_imu else None
+        sf_ned = quat.rotate(state.q, sf) if sf is not None else None
+        meas = PositionMeasurement(state.pos_ned_m, state.vel_ned_m_s, state.q, sf_ned)
+        att = self.loop.update(meas, ref, dt_s)
+        estimate = self.loop.controller.estimate_n
+        if self.estimate_thrust and sf_ned is not None:
+            self.thrust.update(estimate, state.q, float(att.thrust_n), dt_s)
+        u = min(max(self.thrust.normalise(float(att.thrust_n)), 0.0), 1.0)
+        q = tuple(float(c) for c in quat.positive_scalar(att.q_d))
+        sp = Setpoint(q, tuple(float(w) for w in att.omega_d_rad_s), u)  # type: ignore[arg-type]
+        rejected = self.guard.check(sp.q, sp.body_rates_rad_s, sp.thrust)
+        return Tick(t, ref, att, self.loop.force_n, estimate, sp, rejected)

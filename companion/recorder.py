@@ -1,0 +1,201 @@
+"""The flight record: time series, raw MAVLink traffic, per-segment summary, all streamed to disk.
+
+A flight folder holds
+
+- ``timeseries.csv``: one row per control tick (state, reference, setpoint, estimates);
+- ``traffic.tlog``: every datagram sent and received, each prefixed with its 8-byte big-endian
+  microsecond UNIX time (the format MAVProxy writes and pymavlink's ``mavlogdump``/MAVExplorer read);
+- ``segments.json`` and ``summary.md``: per mission step, RMS and peak position error, peak tilt,
+  the final external-force estimate and the thrust-scale estimate.
+
+Rows go straight to the file and the segment statistics are running sums, so memory stays flat
+however long the flight.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import struct
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import IO
+
+from companion.control import quaternion as quat
+
+from .offboard import Tick
+from .state import VehicleState
+
+__all__ = ["COLUMNS", "SegmentStats", "FlightRecorder"]
+
+COLUMNS = (
+    "t", "wall", "step", "offboard", "streaming",
+    "x", "y", "z", "vx", "vy", "vz",
+    "x_ref", "y_ref", "z_ref", "vx_ref", "vy_ref", "vz_ref", "yaw_ref",
+    "qw", "qx", "qy", "qz",
+    "qw_d", "qx_d", "qy_d", "qz_d", "p_d", "q_d", "r_d",
+    "thrust_n", "thrust", "fx", "fy", "fz", "hfx", "hfy", "hfz",
+    "thrust_max_n", "thrust_max_est_n",
+)
+"""t: vehicle clock [s]; wall: seconds since the flight started; step: mission step index;
+offboard: the autopilot flies our setpoints (1/0); streaming: a setpoint was sent this tick;
+positions NED [m]; *_ref the reference; q* the vehicle's attitude, q*_d and p_d.. the setpoint
+(rates in rad/s); thrust_n the controller's thrust [N], thrust the normalised value sent;
+f* the controller's force [N]; hf* the force-disturbance estimate [N]; thrust_max_n the scale in
+use, thrust_max_est_n its online estimate [N]."""
+
+
+@dataclass
+class SegmentStats:
+    """Running statistics of one mission step."""
+
+    index: int
+    name: str
+    action: str
+    t_start: float
+    t_end: float = math.nan
+    samples: int = 0
+    sum_sq_error: float = 0.0
+    peak_error_m: float = 0.0
+    peak_tilt_deg: float = 0.0
+    force_estimate_n: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    thrust_max_est_n: float = math.nan
+    ok: bool = True
+    note: str = ""
+
+    @property
+    def rms_error_m(self) -> float:
+        return math.sqrt(self.sum_sq_error / self.samples) if self.samples else math.nan
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["rms_error_m"] = self.rms_error_m
+        return d
+
+
+@dataclass
+class FlightRecorder:
+    folder: Path
+    segments: list[SegmentStats] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self._csv_file: IO[str] = open(self.folder / "timeseries.csv", "w", newline="", buffering=1 << 16)
+        self._csv = csv.writer(self._csv_file)
+        self._csv.writerow(COLUMNS)
+        self._tlog: IO[bytes] = open(self.folder / "traffic.tlog", "wb", buffering=1 << 16)
+        self._wall0 = time.monotonic()
+        self.rows = 0
+
+    # --- raw traffic -------------------------------------------------------------------------
+
+    def traffic(self, datagram: bytes) -> None:
+        self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + datagram)
+
+    # --- segments ------------------------------------------------------------------------
+
+    def begin(self, index: int, name: str, action: str, t: float) -> SegmentStats:
+        if self.segments and math.isnan(self.segments[-1].t_end):
+            self.segments[-1].t_end = t
+        seg = SegmentStats(index, name, action, t)
+        self.segments.append(seg)
+        return seg
+
+    def end(self, t: float, ok: bool = True, note: str = "") -> None:
+        if self.segments:
+            seg = self.segments[-1]
+            if math.isnan(seg.t_end):
+                seg.t_end = t
+            seg.ok = seg.ok and ok
+            if note:
+                seg.note = note
+
+    # --- rows ------------------------------------------------------------------------------
+
+    def row(self, state: VehicleState, tick: Tick | None, streaming: bool, thrust_max_n: float,
+            thrust_max_est_n: float) -> None:
+        seg = self.segments[-1] if self.segments else None
+        wall = time.monotonic() - self._wall0
+        p, v, q = state.pos_ned_m, state.vel_ned_m_s, state.q
+        tilt = math.degrees(quat.tilt_angle(q))
+        if tick is None:
+            nan = math.nan
+            ref = (nan,) * 7
+            sp = (nan,) * 7
+            thrust = (nan, nan)
+            force = (nan,) * 6
+            t = state.t
+        else:
+            r = tick.reference
+            ref = (*r.pos_ned_m, *r.vel_ned_m_s, r.yaw_rad)
+            a = tick.attitude
+            sp = (*tick.setpoint.q, *tick.setpoint.body_rates_rad_s)
+            thrust = (float(a.thrust_n), tick.setpoint.thrust)
+            force = (*tick.force_n, *tick.estimate_n)
+            t = tick.t
+            if seg is not None:
+                err = math.dist(p, r.pos_ned_m)
+                seg.samples += 1
+                seg.sum_sq_error += err * err
+                seg.peak_error_m = max(seg.peak_error_m, err)
+                seg.force_estimate_n = tuple(float(x) for x in tick.estimate_n)  # type: ignore[assignment]
+                seg.thrust_max_est_n = thrust_max_est_n
+        if seg is not None:
+            seg.peak_tilt_deg = max(seg.peak_tilt_deg, tilt)
+        self._csv.writerow((
+            f"{t:.4f}", f"{wall:.4f}", seg.index if seg else -1, int(state.offboard), int(streaming),
+            *(f"{x:.5g}" for x in (*p, *v, *ref, *q, *sp, *thrust, *force, thrust_max_n, thrust_max_est_n)),
+        ))
+        self.rows += 1
+
+    # --- closing -------------------------------------------------------------------------
+
+    def close(self, summary: dict) -> None:
+        self._csv_file.close()
+        self._tlog.close()
+        data = {**summary, "segments": [s.as_dict() for s in self.segments]}
+        (self.folder / "segments.json").write_text(json.dumps(data, indent=1, default=_json_default))
+        (self.folder / "summary.md").write_text(summary_markdown(data))
+
+
+def _json_default(x: object) -> object:
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return str(x)
+
+
+def summary_markdown(data: dict) -> str:
+    lines = [
+        f"# Flight: {data.get('mission', '')}",
+        "",
+        f"- result: **{data.get('result', '')}**",
+        f"- controller: {data.get('controller', '')} at {data.get('rate_hz', '')} Hz, "
+        f"backend {data.get('backend', '')}, autopilot {data.get('autopilot', '')}",
+        f"- thrust scale: {_fmt(data.get('thrust_max_n'))} N in use, online estimate "
+        f"{_fmt(data.get('thrust_max_est_n'))} N",
+        f"- setpoints sent: {data.get('setpoints_sent', '')}, "
+        f"rejected by the guard: {data.get('setpoints_rejected', '')}",
+        "",
+        "| step | action | duration [s] | RMS error [m] | peak error [m] | peak tilt [deg] "
+        "| force estimate N/E/D [N] | ok |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for s in data.get("segments", []):
+        f = s.get("force_estimate_n") or (None, None, None)
+        dur = (s["t_end"] - s["t_start"]) if s.get("t_end") is not None and s.get("t_start") is not None else None
+        lines.append(
+            f"| {s['name']} | {s['action']} | {_fmt(dur)} | {_fmt(s.get('rms_error_m'))} | "
+            f"{_fmt(s.get('peak_error_m') if s.get('samples') else None)} | {_fmt(s.get('peak_tilt_deg'))} | "
+            f"{' / '.join(_fmt(x) for x in f)} | {'yes' if s.get('ok') else 'NO: ' + s.get('note', '')} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _fmt(x: object) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    if isinstance(x, float):
+        return f"{x:.3g}"
+    return str(x)
