@@ -182,11 +182,11 @@ T = TypeVar("T")
 def _coerce(tp: Any, value: Any, key_path: str) -> Any:
     origin = typing.get_origin(tp)
     if origin in (typing.Union, types.UnionType):
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        if float in args:
+        members = [a for a in typing.get_args(tp) if a is not type(None)]
+        if float in members:
             tp, origin = float, None  # Real: a float in files, a batch array only when built in code
-        elif len(args) == 1:  # optional: a file value is the non-None type
-            return _coerce(args[0], value, key_path)
+        elif len(members) == 1:  # optional: a file value is the non-None type
+            return _coerce(members[0], value, key_path)
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, Mapping):
             raise ParamError(key_path, f"expected a table, got {value!r}")
