@@ -268,17 +268,19 @@ class Flight:
 
     async def _recover(self, leave_to_autopilot: bool = False) -> None:
         """Stop streaming; hold; land; wait until disarmed. If the autopilot left offboard by itself
-        (a failsafe, or a pilot), it is in charge: only wait for it to land."""
+        (a failsafe, or a pilot), it is in charge: stop without fighting it."""
         self.engaged = False
         self.expect_offboard = False
         link = self.link
         if not link.state.armed:
             return
+        if leave_to_autopilot:
+            self.log(f"the autopilot (mode {link.state.mode}) has control: the companion stops here")
+            return
         with contextlib.suppress(LinkError):
-            if not leave_to_autopilot:
-                await link.hold()
-                await asyncio.sleep(0.5 / max(link.clock.rate, 1e-3))
-                await link.land()
+            await link.hold()
+            await asyncio.sleep(0.5 / max(link.clock.rate, 1e-3))
+            await link.land()
         self.interrupted.clear()
         with contextlib.suppress(MissionAbort, _Interrupted):
             await self._until(lambda: not link.state.armed, 120.0, "disarm after landing")

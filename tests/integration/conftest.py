@@ -159,3 +159,58 @@ def quat_angle_deg(a, b) -> float:
     from companion.control import quaternion as quat
 
     return math.degrees(quat.angle_between(tuple(float(x) for x in a), tuple(float(x) for x in b)))
+
+
+class CompanionProcess:
+    """``python -m companion fly ...`` in its own process; :meth:`wait_for` watches its output."""
+
+    def __init__(self, mission: str, url: str, out_dir: Path, *args: str) -> None:
+        cmd = [sys.executable, "-m", "companion", "fly", str(ROOT / mission), "--connect", f"udp://{url}",
+               "--out", str(out_dir), "--no-plots", *args]
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     env=env)
+        self.lines: list[str] = []
+        self.out_dir = out_dir
+
+    def wait_for(self, fragment: str, timeout: float = 60.0) -> str:
+        import selectors
+
+        sel = selectors.DefaultSelector()
+        sel.register(self.proc.stdout, selectors.EVENT_READ)  # type: ignore[arg-type]
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if sel.select(timeout=0.2):
+                line = self.proc.stdout.readline()  # type: ignore[union-attr]
+                if not line:
+                    break
+                self.lines.append(line)
+                if fragment in line:
+                    return line
+        raise AssertionError(f"companion never printed {fragment!r}; output:\n{''.join(self.lines)}")
+
+    def finish(self, timeout: float = 120.0) -> tuple[int, str]:
+        out, _ = self.proc.communicate(timeout=timeout)
+        self.lines.append(out)
+        return self.proc.returncode, "".join(self.lines)
+
+    def flight_dir(self) -> Path:
+        dirs = sorted(p for p in self.out_dir.iterdir() if p.is_dir())
+        assert dirs, "no flight folder written"
+        return dirs[-1]
+
+
+@pytest.fixture
+def companion(tmp_path):
+    procs: list[CompanionProcess] = []
+
+    def start(mission: str, url: str, *args: str) -> CompanionProcess:
+        p = CompanionProcess(mission, url, tmp_path / "flights", *args)
+        procs.append(p)
+        return p
+
+    yield start
+    for p in procs:
+        if p.proc.poll() is None:
+            p.proc.kill()
+            p.proc.wait()
