@@ -147,7 +147,8 @@ class Flight:
             await asyncio.sleep(0.02)
             st = self.link.state
             now = time.monotonic()
-            if st.sysid and now - st.wall_last > safety.link_lost_s:
+            # from the first message on (wait_connected bounds the wait for the first one)
+            if st.sysid and math.isfinite(st.wall_last) and now - st.wall_last > safety.link_lost_s:
                 raise LinkLost(f"vehicle link lost: no telemetry for {now - st.wall_last:.1f} s "
                                f"(bound {safety.link_lost_s:g} s)")
             if not self.engaged:

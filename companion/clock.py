@@ -32,6 +32,7 @@ class VehicleClock:
             return
         if self._anchor is not None and vehicle_t < self._anchor[0] - 1.0:
             self._samples.clear()  # the vehicle restarted: its clock jumped back
+            self._anchor = None
         if self._anchor is not None and vehicle_t <= self._anchor[0]:
             return
         self._anchor = (vehicle_t, wall_t)

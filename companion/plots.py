@@ -14,6 +14,8 @@ __all__ = ["load_timeseries", "draw_flight"]
 def load_timeseries(folder: Path) -> dict[str, np.ndarray]:
     with open(folder / "timeseries.csv") as f:
         header = f.readline().strip().split(",")
+        if not f.readline():
+            return {name: np.zeros(0) for name in header}
     data = np.loadtxt(folder / "timeseries.csv", delimiter=",", skiprows=1, ndmin=2)
     return {name: data[:, i] for i, name in enumerate(header)}
 
@@ -32,6 +34,8 @@ def draw_flight(folder: Path) -> list[Path]:
 
     folder = Path(folder)
     d = load_timeseries(folder)
+    if len(d.get("t", ())) < 2:
+        return []  # nothing was flown: nothing to draw
     meta = json.loads((folder / "segments.json").read_text()) if (folder / "segments.json").exists() else {}
     segs = meta.get("segments", [])
     t = d["t"] - d["t"][0] if len(d["t"]) else d["t"]

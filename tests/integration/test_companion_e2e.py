@@ -52,6 +52,15 @@ def test_waypoint_mission_tracks_the_reference(sitl, companion):
     assert 1.8 < np.nanmax(speed) < 2.6  # flew at the reference's 2 m/s
     report = s.stop()
     assert not report["armed"]  # landed and disarmed
+    # the raw traffic is a .tlog that pymavlink reads back: every setpoint sent, every command acked
+    from pymavlink import mavutil
+
+    log = mavutil.mavlink_connection(str(c.flight_dir() / "traffic.tlog"))
+    kinds: dict[str, int] = {}
+    while (msg := log.recv_match()) is not None:
+        kinds[msg.get_type()] = kinds.get(msg.get_type(), 0) + 1
+    assert kinds["SET_ATTITUDE_TARGET"] == seg["_summary"]["setpoints_sent"]
+    assert kinds["COMMAND_ACK"] >= 4 and kinds["LOCAL_POSITION_NED"] > 1000
 
 
 def test_hover45_holds_position_at_45_degrees_and_does_not_overshoot_on_release(sitl, companion):
@@ -167,3 +176,17 @@ def test_a_bad_mission_file_is_reported_before_anything_arms(tmp_path, sitl, com
     assert "bad.toml:8" in out and "steps[1].action" in out and "expected one of" in out
     report = s.stop()
     assert report["stats"].get("messages", 0) == 0 and not report["armed"]  # never even talked to it
+
+
+def test_the_mavsdk_backend_flies_the_same_mission(sitl, companion):
+    """MAVSDK 4 arms, takes off, lands and reports telemetry; MavlinkDirect carries the setpoints
+    and the switch to offboard. Same bounds as the pymavlink flight of hover45."""
+    s = sitl(speedup=SPEEDUP)
+    c = companion("missions/hover45.toml", s.url, "--backend", "mavsdk")
+    code, out = c.finish()
+    assert code == 0, out
+    seg = segments(c.flight_dir())
+    assert seg["_summary"]["backend"] == "mavsdk"
+    assert abs(seg["45 deg hover"]["force_estimate_n"][0] - 6.0) < 0.3
+    assert seg["after release"]["rms_error_m"] < 0.15
+    assert not s.stop()["armed"]

@@ -1,0 +1,277 @@
+"""MAVSDK 4 (in-process C++ core) as the link, for PX4.
+
+MAVSDK does what it is best at: discovery, arming, take-off, hold and land (Action), telemetry
+subscriptions (Telemetry) and parameters (Param). Two things it cannot do are done through its
+MavlinkDirect plugin: the SET_ATTITUDE_TARGET with quaternion *and* body rates that our
+controller produces, and DO_SET_MODE to OFFBOARD (MAVSDK's Offboard plugin insists on owning
+the setpoint stream).
+
+The flight's ``.tlog``: MAVSDK forwards what it receives to a second, local connection (a tap
+socket of ours), and sends its own messages on every connection; both are recorded. Messages
+addressed only to MAVSDK itself (COMMAND_ACK) are not forwarded, so they are missing from this
+backend's log; what we send through MavlinkDirect (the setpoints) does not reach the tap either,
+so it is encoded again with pymavlink for the log (same content, its own sequence numbers).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from collections import Counter
+from typing import Any
+
+from mavsdk.asyncio import ComponentType, Configuration, ForwardingOption, Mavsdk
+from mavsdk.asyncio.plugins.action import ActionAsync
+from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
+from mavsdk.asyncio.plugins.param import ParamAsync
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+from mavsdk.plugins.mavlink_direct import MavlinkMessage
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from companion.clock import VehicleClock
+from companion.control.quaternion import Quat
+from companion.control.vector import Vec3
+from companion.state import VehicleState
+
+from .base import LinkError, TrafficHook, VehicleLink, parse_url
+from .flavour import PX4, Flavour
+
+__all__ = ["MavsdkLink"]
+
+
+class _Stop(Exception):
+    pass
+
+
+class _Tap(asyncio.DatagramProtocol):
+    def __init__(self, hook: TrafficHook | None) -> None:
+        self.hook = hook
+
+    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        if self.hook is not None:
+            self.hook(data)
+
+
+def _mavsdk_url(url: str) -> str:
+    direction, host, port = parse_url(url)
+    return f"udpin://{host}:{port}" if direction == "in" else f"udpout://{host}:{port}"
+
+
+class MavsdkLink(VehicleLink):
+    def __init__(self, url: str, traffic: TrafficHook | None = None) -> None:
+        self.url = url
+        self.traffic = traffic
+        self.state = VehicleState()
+        self.clock = VehicleClock()
+        self.flavour: Flavour | None = None
+        self.stats: Counter[str] = Counter()
+        self._sdk: Mavsdk | None = None
+        self._tap: asyncio.DatagramTransport | None = None
+        self._system: Any = None
+        self._outbox: asyncio.Queue[MavlinkMessage] = asyncio.Queue(maxsize=4)
+        # what we send through MavlinkDirect never reaches the tap: encode it for the log ourselves
+        self._log_mav = mavlink.MAVLink(None, srcSystem=245, srcComponent=190)
+
+    async def open(self) -> None:
+        loop = asyncio.get_running_loop()
+        tap, _ = await loop.create_datagram_endpoint(lambda: _Tap(self.traffic), local_addr=("127.0.0.1", 0))
+        self._tap = tap  # type: ignore[assignment]
+        tap_port = tap.get_extra_info("sockname")[1]
+        self._sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
+        try:
+            await self._sdk.add_any_connection(_mavsdk_url(self.url))
+            await self._sdk.add_any_connection(f"udpout://127.0.0.1:{tap_port}", ForwardingOption.ON)
+        except Exception as exc:  # MavsdkConnectionError and friends
+            raise LinkError(f"MAVSDK cannot open {self.url}: {exc}") from None
+
+    async def close(self) -> None:
+        if self._sdk is not None:
+            self._sdk.destroy()
+            self._sdk = None
+        if self._tap is not None:
+            self._tap.close()
+            self._tap = None
+
+    async def wait_connected(self, timeout_s: float) -> None:
+        assert self._sdk is not None
+        system = await self._sdk.first_autopilot(timeout_s=timeout_s)
+        if system is None:
+            raise LinkError(f"no autopilot found at {self.url} within {timeout_s:g} s")
+        if getattr(await system.autopilot_type(), "name", "") != "PX4":
+            raise LinkError("the MAVSDK backend flies PX4; use --backend pymavlink for ArduPilot")
+        self._system = system
+        self.flavour = PX4
+        st = self.state
+        st.autopilot, st.sysid, st.compid = "px4", await system.get_system_id(), 1
+        self.telemetry = TelemetryAsync(system)
+        self.action = ActionAsync(system)
+        self.direct = MavlinkDirectAsync(system)
+        self.param = ParamAsync(system)
+        for setter, hz in ((self.telemetry.set_rate_attitude_quaternion, 100.0),
+                           (self.telemetry.set_rate_position_velocity_ned, 60.0),
+                           (self.telemetry.set_rate_imu, 100.0)):
+            try:
+                await setter(hz)
+            except Exception:
+                self.stats["rate_requests_refused"] += 1
+        end = time.monotonic() + timeout_s
+        while not st.has_navigation:  # run() fills the state; it must already be running
+            if time.monotonic() > end:
+                raise LinkError("no position and attitude telemetry through MAVSDK")
+            await asyncio.sleep(0.05)
+
+    # --- telemetry -------------------------------------------------------------------------
+
+    async def run(self, stop: asyncio.Event) -> None:
+        while self._system is None and not stop.is_set():
+            await asyncio.sleep(0.02)
+        if stop.is_set():
+            return
+        try:
+            async with asyncio.TaskGroup() as tg:
+                for coro in (self._attitude(), self._rates(), self._position(), self._imu(), self._mode(),
+                             self._armed(), self._landed(), self._texts(), self._sender()):
+                    tg.create_task(coro)
+                await stop.wait()
+                raise _Stop()
+        except* _Stop:
+            pass
+
+    def _seen(self) -> float:
+        now = time.monotonic()
+        self.state.wall_last = now
+        return now
+
+    async def _attitude(self) -> None:
+        async for q in self.telemetry.subscribe_attitude_quaternion():
+            now = self._seen()
+            t = q.timestamp_us * 1e-6
+            self.state.q = (q.w, q.x, q.y, q.z)
+            self.state.t_att, self.state.wall_att = t, now
+            self.clock.observe(t, now)
+
+    async def _rates(self) -> None:
+        async for w in self.telemetry.subscribe_attitude_angular_velocity_body():
+            self.state.omega_rad_s = (w.roll_rad_s, w.pitch_rad_s, w.yaw_rad_s)
+
+    async def _position(self) -> None:
+        # PositionVelocityNed carries no timestamp: stamp it with the vehicle clock at arrival
+        async for pv in self.telemetry.subscribe_position_velocity_ned():
+            now = self._seen()
+            p, v = pv.position, pv.velocity
+            self.state.pos_ned_m = (p.north_m, p.east_m, p.down_m)
+            self.state.vel_ned_m_s = (v.north_m_s, v.east_m_s, v.down_m_s)
+            self.state.t_pos = self.clock.now(now) if self.clock.ready else self.state.t_att
+            self.state.wall_pos = now
+
+    async def _imu(self) -> None:
+        async for imu in self.telemetry.subscribe_imu():
+            now = self._seen()
+            a = imu.acceleration_frd
+            t = imu.timestamp_us * 1e-6
+            self.state.specific_force_body_m_s2 = (a.forward_m_s2, a.right_m_s2, a.down_m_s2)
+            self.state.t_imu, self.state.wall_imu = t, now
+            self.clock.observe(t, now)
+
+    async def _mode(self) -> None:
+        async for mode in self.telemetry.subscribe_flight_mode():
+            self.state.mode = mode.name
+            self.state.offboard = mode.name == "OFFBOARD"
+            self.state.wall_heartbeat = self._seen()
+
+    async def _armed(self) -> None:
+        async for armed in self.telemetry.subscribe_armed():
+            self.state.armed = bool(armed)
+
+    async def _landed(self) -> None:
+        async for landed in self.telemetry.subscribe_landed_state():
+            self.state.landed_state = {"ON_GROUND": 1, "IN_AIR": 2, "TAKING_OFF": 3, "LANDING": 4}.get(landed.name, 0)
+
+    async def _texts(self) -> None:
+        async for text in self.telemetry.subscribe_status_text():
+            self.state.statustexts.append((0, text.text))
+
+    async def _sender(self) -> None:
+        while True:
+            msg = await self._outbox.get()
+            try:
+                await self.direct.send_message(msg)
+                self.stats["setpoints"] += 1
+            except Exception:
+                self.stats["send_errors"] += 1
+
+    # --- commands --------------------------------------------------------------------------
+
+    async def _do(self, what: str, coro: Any) -> None:
+        try:
+            await coro
+        except Exception as exc:  # ActionError etc. carry the autopilot's refusal
+            reason = self.state.statustexts[-1][1] if self.state.statustexts else ""
+            raise LinkError(f"{what} refused: {exc}{' (' + reason + ')' if reason else ''}") from None
+
+    async def arm(self) -> None:
+        await self._do("arming", self.action.arm())
+
+    async def disarm(self, force: bool = False) -> None:
+        await self._do("disarming", self.action.kill() if force else self.action.disarm())
+
+    async def takeoff(self, altitude_m: float) -> None:
+        await self._do("take-off altitude", self.action.set_takeoff_altitude(altitude_m))
+        await self._do("take-off", self.action.takeoff())
+
+    async def start_offboard(self) -> None:
+        fields = {"target_system": self.state.sysid, "target_component": 1, "command": 176, "confirmation": 0,
+                  "param1": 1.0, "param2": 6.0, "param3": 0.0, "param4": 0.0, "param5": 0.0, "param6": 0.0,
+                  "param7": 0.0}
+        cmd = MavlinkMessage(message_name="COMMAND_LONG", system_id=245, component_id=190,
+                             target_system_id=self.state.sysid, target_component_id=1, fields_json=json.dumps(fields))
+        try:
+            ack = await self.direct.send_command(cmd)
+            result = json.loads(ack.fields_json).get("result", -1) if ack.fields_json else -1
+        except Exception as exc:
+            raise LinkError(f"offboard mode: {exc}") from None
+        if result != 0:
+            reason = self.state.statustexts[-1][1] if self.state.statustexts else ""
+            raise LinkError(f"offboard mode refused (MAV_RESULT {result}){': ' + reason if reason else ''}")
+
+    async def hold(self) -> None:
+        await self._do("hold", self.action.hold())
+
+    async def land(self) -> None:
+        await self._do("land", self.action.land())
+
+    # --- setpoints and parameters ----------------------------------------------------------
+
+    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float) -> None:
+        fields = {"time_boot_ms": int(max(self.state.t, 0.0) * 1000) & 0xFFFFFFFF,
+                  "target_system": self.state.sysid, "target_component": 1, "type_mask": 0,
+                  "q": [float(c) for c in q], "body_roll_rate": float(body_rates_rad_s[0]),
+                  "body_pitch_rate": float(body_rates_rad_s[1]), "body_yaw_rate": float(body_rates_rad_s[2]),
+                  "thrust": float(thrust)}
+        msg = MavlinkMessage(message_name="SET_ATTITUDE_TARGET", system_id=245, component_id=190,
+                             target_system_id=self.state.sysid, target_component_id=1, fields_json=json.dumps(fields))
+        if self._outbox.full():  # never queue stale setpoints: the newest one wins
+            self._outbox.get_nowait()
+            self.stats["setpoints_superseded"] += 1
+        self._outbox.put_nowait(msg)
+        if self.traffic is not None:
+            self.traffic(self._log_mav.set_attitude_target_encode(
+                fields["time_boot_ms"], self.state.sysid, 1, 0, fields["q"], fields["body_roll_rate"],
+                fields["body_pitch_rate"], fields["body_yaw_rate"], fields["thrust"]).pack(self._log_mav))
+
+    async def get_param(self, name: str) -> float | None:
+        try:
+            return float(await self.param.get_param_float(name))
+        except Exception:
+            return None
+
+    async def set_param(self, name: str, value: float) -> float:
+        try:
+            await self.param.set_param_float(name, float(value))
+        except Exception as exc:
+            raise LinkError(f"parameter {name}: {exc}") from None
+        echoed = await self.get_param(name)
+        if echoed is None:
+            raise LinkError(f"parameter {name} was not read back")
+        return echoed

@@ -1,0 +1,123 @@
+"""Mission files: every mistake is named with its file, line, key and what was expected."""
+
+import json
+import math
+
+import pytest
+
+from companion.config import ConfigError
+from companion.mission import load_mission, load_plan
+
+GOOD = """name = "m"
+[controller]
+position = "pd_do"
+
+[[steps]]
+action = "takeoff"
+altitude_m = 1.5
+
+[[steps]]
+action = "offboard"
+
+[[steps]]
+action = "goto"
+waypoints = [[1, 0, -1.5], [1, 1, -1.5]]
+
+[[steps]]
+action = "land"
+"""
+
+
+def write(tmp_path, text, name="m.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def error(tmp_path, text):
+    with pytest.raises(ConfigError) as e:
+        load_mission(write(tmp_path, text))
+    return e.value
+
+
+def test_a_good_mission_loads(tmp_path):
+    m = load_mission(write(tmp_path, GOOD))
+    assert m.controller.position == "pd_do"
+    assert [s.action for s in m.steps] == ["takeoff", "offboard", "goto", "land"]
+    assert m.steps[2].waypoints == ((1.0, 0.0, -1.5), (1.0, 1.0, -1.5))
+
+
+def test_unknown_action(tmp_path):
+    e = error(tmp_path, GOOD.replace('action = "goto"', 'action = "fly_to"'))
+    assert e.line == 13 and e.key == "steps[2].action" and "expected one of" in e.reason
+
+
+def test_key_that_does_not_belong_to_the_action(tmp_path):
+    e = error(tmp_path, GOOD.replace('altitude_m = 1.5', 'altitude_m = 1.5\nduration_s = 3'))
+    assert e.line == 8 and e.key == "steps[0].duration_s" and "altitude_m" in e.reason
+
+
+def test_missing_required_key(tmp_path):
+    e = error(tmp_path, GOOD.replace("waypoints = [[1, 0, -1.5], [1, 1, -1.5]]\n", ""))
+    assert e.key == "steps[2].action" and "'waypoints'" in e.reason
+
+
+def test_wrong_type_names_the_expected_type(tmp_path):
+    e = error(tmp_path, GOOD.replace("altitude_m = 1.5", 'altitude_m = "high"'))
+    assert e.line == 7 and "expected a number" in e.reason
+
+
+def test_waypoint_below_ground(tmp_path):
+    e = error(tmp_path, GOOD.replace("[1, 1, -1.5]]", "[1, 1, 2.0]]"))
+    assert e.key == "steps[2].waypoints[1]" and "below the ground" in e.reason
+
+
+def test_flying_offboard_without_the_offboard_step(tmp_path):
+    e = error(tmp_path, GOOD.replace('[[steps]]\naction = "offboard"\n\n', ""))
+    assert "needs an 'offboard' step" in e.reason and e.line == 9
+
+
+def test_controller_section_errors(tmp_path):
+    e = error(tmp_path, GOOD.replace('position = "pd_do"', 'position = "lqr"'))
+    assert e.key == "controller" and "lqr" in str(e) and e.line == 2
+    e = error(tmp_path, GOOD.replace('position = "pd_do"', 'position = "pd_do"\nrate_hz = 1000'))
+    assert "10..250" in str(e)
+
+
+def test_no_steps(tmp_path):
+    assert "[[steps]]" in error(tmp_path, 'name = "x"\n').reason
+
+
+def test_bundled_missions_load():
+    from companion.demo import MISSIONS_DIR
+
+    for p in sorted(MISSIONS_DIR.glob("*.toml")):
+        assert load_mission(p).steps
+
+
+def test_qgroundcontrol_plan_import(tmp_path):
+    """Waypoints at +-0.0001 deg around the home: ~11.1 m north and ~7.5 m east at 47.4 deg."""
+    home = [47.3977, 8.5456, 488.0]
+    items = [
+        {"type": "SimpleItem", "command": 22, "params": [0, 0, 0, None, *home[:2], 3.0]},
+        {"type": "SimpleItem", "command": 16, "params": [0, 0, 0, None, home[0] + 1e-4, home[1], 3.0]},
+        {"type": "SimpleItem", "command": 16, "params": [0, 0, 0, None, home[0], home[1] + 1e-4, 4.0]},
+        {"type": "SimpleItem", "command": 20, "params": [0, 0, 0, 0, 0, 0, 0]},
+    ]
+    p = tmp_path / "m.plan"
+    p.write_text(json.dumps({"mission": {"items": items, "plannedHomePosition": home}}))
+    m = load_mission(p)
+    assert [s.action for s in m.steps] == ["takeoff", "offboard", "goto", "land"]
+    assert m.steps[0].altitude_m == 3.0
+    wp = m.steps[2].waypoints
+    assert math.isclose(wp[0][0], 11.13, rel_tol=0.01) and abs(wp[0][1]) < 1e-9 and wp[0][2] == -3.0
+    assert math.isclose(wp[1][1], 11.13 * math.cos(math.radians(47.3977)), rel_tol=0.01) and wp[1][2] == -4.0
+
+
+def test_plan_with_an_unsupported_item(tmp_path):
+    p = tmp_path / "m.plan"
+    p.write_text(json.dumps({"mission": {"items": [{"type": "SimpleItem", "command": 183, "params": [0] * 7}],
+                                         "plannedHomePosition": [0, 0, 0]}}))
+    with pytest.raises(ConfigError) as e:
+        load_plan(p)
+    assert "183" in str(e.value)

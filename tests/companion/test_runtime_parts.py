@@ -1,0 +1,67 @@
+"""The companion's pure parts: vehicle clock, thrust-scale estimate, setpoint guard."""
+
+import math
+
+from companion.clock import VehicleClock
+from companion.control import quaternion as quat
+from companion.safety import SetpointGuard
+from companion.thrust_scale import ThrustScaleEstimator
+
+
+def test_clock_learns_the_speedup_and_schedules_ticks():
+    c = VehicleClock()
+    for k in range(300):  # 3 s of wall time at 100 Hz, vehicle running 4x, 10.0 s boot offset
+        w = 100.0 + 0.01 * k
+        c.observe(10.0 + 4.0 * 0.01 * k, w)
+    assert math.isclose(c.rate, 4.0, rel_tol=1e-9)
+    assert math.isclose(c.now(103.0), 10.0 + 4.0 * 3.0, rel_tol=1e-9)
+    assert math.isclose(c.wall_at(22.0), 103.0, rel_tol=1e-9)
+    assert math.isclose(c.age(21.0, 103.0), 1.0, rel_tol=1e-6)
+
+
+def test_clock_ignores_reordered_samples_and_survives_a_vehicle_restart():
+    c = VehicleClock()
+    for k in range(100):
+        c.observe(5.0 + 0.01 * k, 0.01 * k)
+    c.observe(5.5, 1.0)  # late, older sample: ignored
+    assert math.isclose(c.now(0.99), 5.99, abs_tol=1e-9)
+    c.observe(0.1, 2.0)  # restarted vehicle: clock back near zero
+    assert math.isclose(c.now(2.0), 0.1)
+
+
+def test_thrust_scale_estimate_converges_to_the_true_scale():
+    """The observer sees (k - 1) T b when the true scale is 18.56 N and we assume 15 N; the
+    estimate must find 18.56 N (within 1%) in level hover and in a 45 deg hover where a 6 N
+    horizontal force also acts (which the vertical-only measurement must ignore)."""
+    true_max = 18.56
+    for tilt in (0.0, math.radians(45.0)):
+        est = ThrustScaleEstimator(15.0, adapt=True)
+        q = quat.from_euler(0.0, tilt, 0.0)
+        for _ in range(6000):  # 60 s at 100 Hz
+            t_cmd = 6.18 / math.cos(tilt)
+            k = true_max / est.thrust_max_n
+            b = quat.rotate(q, (0.0, 0.0, -1.0))
+            h = tuple((k - 1.0) * t_cmd * b[i] + (6.0 if i == 0 and tilt else 0.0) for i in range(3))
+            est.update(h, q, t_cmd, 0.01)
+        assert math.isclose(est.estimated_thrust_max_n, true_max, rel_tol=0.01), tilt
+        assert math.isclose(est.thrust_max_n, true_max, rel_tol=0.01), tilt
+
+
+def test_thrust_scale_without_adaptation_only_reports():
+    est = ThrustScaleEstimator(15.0, adapt=False)
+    for _ in range(3000):
+        est.update((0.0, 0.0, -(18.56 / 15.0 - 1.0) * 6.18), quat.IDENTITY, 6.18, 0.01)
+    assert est.thrust_max_n == 15.0
+    assert math.isclose(est.estimated_thrust_max_n, 18.56, rel_tol=0.01)
+
+
+def test_guard_rejects_what_must_not_fly():
+    g = SetpointGuard(math.radians(60.0), math.radians(250.0))
+    level = (1.0, 0.0, 0.0, 0.0)
+    assert g.check(level, (0.0, 0.0, 0.0), 0.5) is None
+    assert "non-finite" in g.check((math.nan, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.5)
+    assert "norm" in g.check((0.9, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.5)
+    assert "thrust" in g.check(level, (0.0, 0.0, 0.0), 1.2)
+    assert "rate" in g.check(level, (5.0, 0.0, 0.0), 0.5)
+    assert "tilt" in g.check(quat.from_euler(math.radians(70.0), 0.0, 0.0), (0.0, 0.0, 0.0), 0.5)
+    assert g.check(quat.from_euler(math.radians(59.0), 0.0, 0.0), (0.0, 0.0, 0.0), 0.5) is None
