@@ -14,7 +14,8 @@ $(VENV)/.installed: pyproject.toml
 
 setup: $(VENV)/.installed
 
-demo: experiments
+demo: setup
+	$(PY) -m companion demo --out flights
 
 experiments: setup
 	$(PY) -m sitl.experiments all --out $(OUT)
@@ -29,6 +30,7 @@ lint: setup
 bench: setup
 	$(PY) benchmarks/bench_simulation.py
 	$(PY) benchmarks/bench_sitl.py
+	$(PY) benchmarks/bench_companion.py
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache
+	rm -rf $(VENV) $(OUT) flights .pytest_cache
