@@ -75,15 +75,17 @@ class FlightResult:
 
 
 PRECISE_SLEEP_S = 0.0015
+MIN_SILENCE_S = 0.15
+"""wall seconds of silence below which telemetry is never called stale (sped-up simulations)"""
 
 
-async def _sleep_until(wall_t: float) -> None:
-    """asyncio.sleep rounds its wake-up up to whole milliseconds (epoll); for the last 1.5 ms a
-    blocking nanosleep lands the tick within ~0.1 ms. The loop is blocked only for time it would
-    have spent idle; datagrams wait in the socket buffer meanwhile."""
+async def _sleep_until(wall_t: float, precise_s: float = PRECISE_SLEEP_S) -> None:
+    """asyncio.sleep rounds its wake-up up to whole milliseconds (epoll); for the last
+    ``precise_s`` a blocking nanosleep lands the tick within ~0.1 ms. The loop is blocked only for
+    time it would have spent idle; datagrams wait in the socket buffer (stamped on arrival)."""
     remaining = wall_t - time.monotonic()
-    if remaining > PRECISE_SLEEP_S:
-        await asyncio.sleep(remaining - PRECISE_SLEEP_S)
+    if remaining > precise_s:
+        await asyncio.sleep(remaining - precise_s)
     remaining = wall_t - time.monotonic()
     if remaining > 0:
         time.sleep(remaining)
@@ -171,7 +173,11 @@ class Flight:
                 self.stale = False
                 continue
             age = self.link.telemetry_age(now)
-            stale = age > safety.telemetry_timeout_s
+            # stale: too old in vehicle time AND really silent on the wire; sped up, a short pause
+            # of the (simulated) vehicle itself would otherwise look like seconds of vehicle time
+            silent_wall = now - min(st.wall_pos, st.wall_att)
+            stale = age > safety.telemetry_timeout_s and silent_wall > max(
+                safety.telemetry_timeout_s / max(self.link.clock.rate, 1e-3), MIN_SILENCE_S)
             if stale and not self.stale:
                 self.stale = True
                 self.log(f"telemetry stale ({age:.2f} s): setpoints stopped, holding")
@@ -190,7 +196,8 @@ class Flight:
         t_prev = t_next - period
         while not self.finished.is_set():
             t_next += period
-            await _sleep_until(clock.wall_at(t_next))
+            # block at most a quarter of a tick: sped up, a tick is only a few ms of wall time
+            await _sleep_until(clock.wall_at(t_next), min(PRECISE_SLEEP_S, 0.25 * period / clock.rate))
             now_v = clock.now(time.monotonic())
             if now_v - t_next > 5 * period:  # fell behind (a stalled vehicle or machine): resync
                 self.late_ticks += 1
@@ -306,13 +313,16 @@ class Flight:
         m, link = self.mission, self.link
         t_max = self.opt.thrust_max_n or m.thrust.thrust_max_n
         source = "configuration"
+        # optional look-ups: a parameter an autopilot does not have simply gets no answer
         if not t_max:
-            sim = await link.get_param("SIM_THRUST_MAX")
+            sim = await link.get_param("SIM_THRUST_MAX", 0.3, 2)
             if sim:
                 t_max, source = sim, "vehicle SIM_THRUST_MAX"
         if not t_max:
-            for name in ("MPC_THR_HOVER", "MOT_THST_HOVER"):
-                hover = await link.get_param(name)
+            names = ("MOT_THST_HOVER", "MPC_THR_HOVER") if link.state.autopilot == "ardupilot" else (
+                "MPC_THR_HOVER", "MOT_THST_HOVER")
+            for name in names:
+                hover = await link.get_param(name, 0.3, 2)
                 if hover:
                     t_max, source = m.vehicle.weight_n / hover, f"vehicle {name} = {hover:.3f}"
                     break
@@ -321,6 +331,8 @@ class Flight:
         if not t_max:
             raise MissionAbort("no thrust scale: set [thrust] thrust_max_n or hover_throttle in the mission")
         self.log(f"thrust scale {t_max:.2f} N at full throttle ({source})")
+        if link.state.autopilot == "ardupilot":
+            await self._ardupilot_lean_angle()
         gains = m.gains
         if self.link.state.specific_force_body_m_s2 is None:
             gains = dataclasses.replace(gains, observer_uses_imu=False)
@@ -337,6 +349,17 @@ class Flight:
             reference, m.trajectory, ThrustScaleEstimator(t_max, adapt=m.thrust.adapt),
             self.guard, estimate_thrust=m.thrust.estimate,
         )
+
+    async def _ardupilot_lean_angle(self) -> None:
+        """ArduCopter clips attitude targets to ANGLE_MAX (30 deg by default): raise it to the
+        mission's tilt bound, or the 45 deg hover could never be flown."""
+        want = 100.0 * self.mission.safety.max_tilt_deg
+        have = await self.link.get_param("ANGLE_MAX")
+        if have is not None and have < want:
+            got = await self.link.set_param("ANGLE_MAX", want)
+            if got < want:
+                raise MissionAbort(f"ANGLE_MAX is {got / 100:g} deg and could not be raised to {want / 100:g}")
+            self.log(f"ANGLE_MAX raised from {have / 100:g} to {want / 100:g} deg (mission tilt bound)")
 
     async def _step(self, s: Step) -> None:
         link, st = self.link, self.link.state

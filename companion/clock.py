@@ -8,6 +8,10 @@ the older and of the newer half of a few seconds' window, and the anchor is the 
 sample of the last second. Anchoring on the newest sample instead would pass every packet's
 delay jitter straight into the control loop's tick times.
 
+Cost stays constant per packet however fast telemetry arrives: one sample is kept per 10 ms of
+wall time (the least delayed of that bin), the anchor is updated as packets come, and the rate
+is refitted at most ten times a second.
+
 The control loop runs at a fixed rate *in vehicle time* by sleeping until :meth:`wall_at` its
 next tick, and takes its ``dt`` from vehicle time, so the controller works at any speed-up.
 """
@@ -19,6 +23,9 @@ from collections import deque
 
 __all__ = ["VehicleClock"]
 
+BIN_S = 0.01
+REFIT_S = 0.1
+
 
 class VehicleClock:
     def __init__(self, window_s: float = 4.0, anchor_window_s: float = 1.0) -> None:
@@ -28,58 +35,70 @@ class VehicleClock:
         self._rate = 1.0
         self._newest: tuple[float, float] | None = None
         self._anchor: tuple[float, float] | None = None
-        self._dirty = False
+        self._last_fit = -math.inf
 
     @property
     def ready(self) -> bool:
         return self._newest is not None
+
+    def _delay(self, sample: tuple[float, float]) -> float:
+        """Arrival relative to the clock line (larger: later): wall - vehicle / rate."""
+        return sample[1] - sample[0] / self._rate
 
     def observe(self, vehicle_t: float, wall_t: float) -> None:
         if not math.isfinite(vehicle_t):
             return
         if self._newest is not None and vehicle_t < self._newest[0] - 1.0:
             self._samples.clear()  # the vehicle restarted: its clock jumped back
-            self._newest = None
+            self._newest = self._anchor = None
         if self._newest is not None and vehicle_t <= self._newest[0]:
             return
-        self._newest = (vehicle_t, wall_t)
+        sample = (vehicle_t, wall_t)
+        self._newest = sample
         s = self._samples
-        s.append((vehicle_t, wall_t))
-        while len(s) > 2 and wall_t - s[0][1] > self.window_s:
-            s.popleft()
-        self._dirty = True
+        if s and int(s[-1][1] / BIN_S) == int(wall_t / BIN_S):
+            if self._delay(sample) < self._delay(s[-1]):
+                s[-1] = sample  # one sample per bin: the least delayed
+        else:
+            s.append(sample)
+            while len(s) > 2 and wall_t - s[0][1] > self.window_s:
+                s.popleft()
+        a = self._anchor
+        if a is None or wall_t - a[1] > self.anchor_window_s or self._delay(sample) <= self._delay(a):
+            self._anchor = sample if a is None or self._delay(sample) <= self._delay(a) else self._best_recent()
+
+    def _best_recent(self) -> tuple[float, float]:
+        assert self._newest is not None
+        recent = [x for x in self._samples if x[1] >= self._newest[1] - self.anchor_window_s]
+        return min(recent, key=self._delay) if recent else self._newest
+
+    def _refit(self) -> None:
+        """Rate from the least-delayed samples of the two halves of the window (bounded cost)."""
+        assert self._newest is not None
+        self._last_fit = self._newest[1]
+        s = self._samples
+        if len(s) >= 4 and s[-1][1] - s[0][1] > 0.5:
+            mid = 0.5 * (s[0][1] + s[-1][1])
+            old = min((x for x in s if x[1] < mid), key=self._delay)
+            new = min((x for x in s if x[1] >= mid), key=self._delay)
+            if new[1] - old[1] > 0.25:
+                rate = (new[0] - old[0]) / (new[1] - old[1])
+                if 0.01 < rate < 1000.0:
+                    self._rate = rate
+                    self._anchor = self._best_recent()
+
+    def _anchor_now(self) -> tuple[float, float] | None:
+        if self._newest is None:
+            return None
+        if self._newest[1] - self._last_fit > REFIT_S:
+            self._refit()
+        return self._anchor
 
     @property
     def rate(self) -> float:
         """Vehicle seconds per wall second."""
         self._anchor_now()
         return self._rate
-
-    def _least_delayed(self, samples: list[tuple[float, float]]) -> tuple[float, float]:
-        r = self._rate
-        return min(samples, key=lambda vw: vw[1] - vw[0] / r)
-
-    def _fit(self) -> None:
-        s = list(self._samples)
-        if len(s) >= 4 and s[-1][1] - s[0][1] > 0.5:
-            mid = 0.5 * (s[0][1] + s[-1][1])
-            old = self._least_delayed([x for x in s if x[1] < mid])
-            new = self._least_delayed([x for x in s if x[1] >= mid])
-            if new[1] - old[1] > 0.25:
-                rate = (new[0] - old[0]) / (new[1] - old[1])
-                if 0.01 < rate < 1000.0:
-                    self._rate = rate
-        assert self._newest is not None
-        recent = [x for x in s if x[1] >= self._newest[1] - self.anchor_window_s] or [self._newest]
-        self._anchor = self._least_delayed(recent)
-        self._dirty = False
-
-    def _anchor_now(self) -> tuple[float, float] | None:
-        if self._newest is None:
-            return None
-        if self._dirty or self._anchor is None:
-            self._fit()
-        return self._anchor
 
     def now(self, wall_t: float) -> float:
         """Vehicle time at wall time ``wall_t`` (from the clock line, not the newest packet)."""

@@ -117,7 +117,8 @@ class ThrustConfig:
 @dataclass(frozen=True)
 class SafetyConfig:
     telemetry_timeout_s: float = 0.3
-    """vehicle-clock age of position/attitude beyond which setpoints stop and the vehicle is told to hold"""
+    """vehicle-clock age of position/attitude beyond which setpoints stop and the vehicle is told to
+    hold (at a speed-up, the streams must also have been silent for at least 0.15 s of wall time)"""
     link_lost_s: float = 3.0
     """wall seconds without any telemetry after which the companion gives up and exits with an error"""
     max_tilt_deg: float = 60.0

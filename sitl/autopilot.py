@@ -30,6 +30,7 @@ from typing import NamedTuple
 
 from companion.control import quaternion as quat
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
+from companion.control.reference import attitude_from_force, limit_force
 from companion.control.trajectory import ReferenceFilter
 from companion.control.vector import ZERO3, Vec3
 
@@ -47,29 +48,48 @@ __all__ = [
 
 
 class Mode(enum.Enum):
-    """PX4 custom modes, value ``(main, sub)``; ``custom_mode = main << 16 | sub << 24``."""
+    """The firmware's modes; how each flavour numbers them is in PX4_MODES and COPTER_MODES."""
 
-    MANUAL = (1, 0)
-    ALTCTL = (2, 0)
-    POSCTL = (3, 0)
-    TAKEOFF = (4, 2)
-    HOLD = (4, 3)
-    MISSION = (4, 4)
-    RTL = (4, 5)
-    LAND = (4, 6)
-    OFFBOARD = (6, 0)
+    MANUAL = "manual"
+    ALTCTL = "altctl"
+    POSCTL = "posctl"
+    TAKEOFF = "takeoff"
+    HOLD = "hold"
+    MISSION = "mission"
+    RTL = "rtl"
+    LAND = "land"
+    OFFBOARD = "offboard"
+    GUIDED = "guided"
+    """ArduPilot: flies attitude targets while they are fresh, otherwise holds position"""
 
-    @property
-    def custom_mode(self) -> int:
-        main, sub = self.value
-        return (main << 16) | (sub << 24)
 
-    @classmethod
-    def from_main_sub(cls, main: int, sub: int) -> Mode | None:
-        for m in cls:
-            if m.value == (main, sub):
-                return m
-        return None
+PX4_MODES = {
+    Mode.MANUAL: (1, 0), Mode.ALTCTL: (2, 0), Mode.POSCTL: (3, 0), Mode.TAKEOFF: (4, 2), Mode.HOLD: (4, 3),
+    Mode.MISSION: (4, 4), Mode.RTL: (4, 5), Mode.LAND: (4, 6), Mode.OFFBOARD: (6, 0),
+}
+"""PX4: ``custom_mode = main << 16 | sub << 24``; DO_SET_MODE param2 = main, param3 = sub"""
+
+COPTER_MODES = {
+    Mode.MANUAL: 0, Mode.ALTCTL: 2, Mode.MISSION: 3, Mode.GUIDED: 4, Mode.HOLD: 5, Mode.RTL: 6, Mode.LAND: 9,
+    Mode.POSCTL: 16,
+}
+"""ArduCopter: ``custom_mode`` and DO_SET_MODE param2 are the mode number (take-off runs in GUIDED);
+GUIDED_NOGPS (20) and BRAKE (17) are accepted as GUIDED and LOITER"""
+
+
+def custom_mode(mode: Mode, flavour: str) -> int:
+    if flavour == "ardupilot":
+        return COPTER_MODES.get(mode, COPTER_MODES[Mode.GUIDED] if mode == Mode.TAKEOFF else 0)
+    main, sub = PX4_MODES.get(mode, (0, 0))
+    return (main << 16) | (sub << 24)
+
+
+def mode_from_command(flavour: str, p2: int, p3: int) -> Mode | None:
+    """The mode a DO_SET_MODE asks for (param2, param3), in the flavour's numbering."""
+    if flavour == "ardupilot":
+        extra = {20: Mode.GUIDED, 17: Mode.HOLD}
+        return next((m for m, n in COPTER_MODES.items() if n == p2), None) or extra.get(p2)
+    return next((m for m, v in PX4_MODES.items() if v == (p2, p3)), None)
 
 
 class LandedState(enum.IntEnum):
@@ -125,6 +145,14 @@ class AutopilotParams:
     """PX4's either/or rule: with an attitude, only the yaw rate is used as feed-forward"""
     hold_controller: str = "ism_do"
     """position controller of the firmware's own hold, take-off and landing"""
+    flavour: str = "px4"
+    """"px4" or "ardupilot" (modes, take-off in GUIDED, no offboard-loss failsafe, ANGLE_MAX, ...)"""
+    guided_timeout_s: float = 3.0
+    """ArduPilot GUID_TIMEOUT: attitude targets older than this are no longer flown; it holds"""
+    angle_max_deg: float = 30.0
+    """ArduPilot ANGLE_MAX / 100: the tilt an attitude target is clipped to in GUIDED"""
+    guided_thrust_is_throttle: bool = False
+    """ArduPilot GUID_OPTIONS bit 3: thrust is throttle (else a climb rate, 0.5 = hold altitude)"""
 
 
 class CommandResult(NamedTuple):
@@ -140,7 +168,7 @@ MAV_CMD_DO_SET_MODE = 176
 MAV_CMD_COMPONENT_ARM_DISARM = 400
 FORCE_DISARM = 21196.0
 
-_POSITION_MODES = (Mode.HOLD, Mode.TAKEOFF, Mode.LAND, Mode.RTL)
+_POSITION_MODES = (Mode.HOLD, Mode.TAKEOFF, Mode.LAND, Mode.RTL, Mode.GUIDED)
 
 
 class Autopilot:
@@ -185,6 +213,10 @@ class Autopilot:
         self._land_phase_home = False
         vehicle.motors_on = False
 
+    @property
+    def ardupilot(self) -> bool:
+        return self.params.flavour == "ardupilot"
+
     # --- events --------------------------------------------------------------------------
 
     def _say(self, severity: Severity, text: str) -> None:
@@ -217,7 +249,7 @@ class Autopilot:
                 return self._deny("mode change: non-finite parameters")
             if not int(p[0]) & 1:
                 return self._deny("mode change: base mode lacks the custom flag")
-            mode = Mode.from_main_sub(int(p[1]), int(p[2]))
+            mode = mode_from_command(self.params.flavour, int(p[1]), int(p[2]))
             if mode is None:
                 return self._deny(f"mode change: unknown mode {int(p[1])}/{int(p[2])}")
             return self.set_mode(mode, sender)
@@ -266,6 +298,17 @@ class Autopilot:
     def _takeoff(self, altitude_amsl_m: float) -> CommandResult:
         if not self.armed:
             return self._deny("Takeoff denied: disarmed")
+        if self.ardupilot:
+            # ArduCopter: only in GUIDED, param7 is the height above home
+            if self.mode not in (Mode.GUIDED, Mode.TAKEOFF):
+                return self._deny("Takeoff denied: not in GUIDED")
+            if not (math.isfinite(altitude_amsl_m) and 0.5 <= altitude_amsl_m <= 100.0):
+                return self._deny(f"Takeoff denied: altitude {altitude_amsl_m!r}")
+            if self.mode == Mode.TAKEOFF:
+                return CommandResult(MavResult.ACCEPTED)
+            self.takeoff_alt_m = altitude_amsl_m
+            self._enter(Mode.TAKEOFF)
+            return CommandResult(MavResult.ACCEPTED)
         alt = self.params.takeoff_alt_m
         if math.isfinite(altitude_amsl_m):
             alt = altitude_amsl_m - self.origin_alt_m
@@ -276,6 +319,11 @@ class Autopilot:
         self.takeoff_alt_m = alt
         self._enter(Mode.TAKEOFF)
         return CommandResult(MavResult.ACCEPTED)
+
+    CLIMB_RATE_MAX_M_S = 2.5
+    """ArduPilot, thrust as climb rate: 0 -> descend at this rate, 0.5 -> hold, 1 -> climb at it"""
+    guided_climb_rate_m_s = 0.0
+    _guided_flying = False
 
     origin_alt_m = 488.0
     """AMSL altitude of the local origin (set by the server from its geodetic origin)"""
@@ -290,11 +338,13 @@ class Autopilot:
             return self._deny(f"{mode.name} denied: no RC in this simulation")
         if mode == Mode.MISSION:
             return self._deny("Mission denied: no mission loaded")
+        if mode == Mode.GUIDED and not self.ardupilot or mode == Mode.OFFBOARD and self.ardupilot:
+            return self._deny(f"{mode.name} denied: not a mode of this autopilot")
         if mode == Mode.OFFBOARD:
             if not self.setpoint_stream_active():
                 return self._deny("Offboard denied: no setpoint stream (>2 Hz)")
             self.offboard_owner = sender
-        if mode == Mode.TAKEOFF:
+        if mode == Mode.TAKEOFF and not self.ardupilot:
             return self._takeoff(math.nan)
         if mode in (Mode.RTL, Mode.LAND) and (not self.armed or self.landed):
             if mode == Mode.LAND:
@@ -317,9 +367,10 @@ class Autopilot:
             self.ref_filter = ReferenceFilter(traj, pos, yaw, self.vehicle.tracked.vel_ned_m_s)
             self.position_loop.reset()
             self.position_loop.thrust_n = self.setpoint.thrust_n
-        if mode == Mode.HOLD:
+        if mode in (Mode.HOLD, Mode.GUIDED):
             self.ref_filter.params = traj
             self.target, self.target_yaw = pos, yaw
+            self._guided_flying = False
         elif mode == Mode.TAKEOFF:
             self.ref_filter.params = dataclasses.replace(traj, max_speed_m_s=self.params.takeoff_speed_m_s)
             z = self.home[2] - self.takeoff_alt_m
@@ -386,6 +437,7 @@ class Autopilot:
         prev = self.offboard_attitude
         t_max = self.vehicle.scenario.vehicle.thrust_max_n
         thrust_n = thrust * t_max if use_thrust else (prev.thrust_n if prev else 0.0)
+        self.guided_climb_rate_m_s = (thrust - 0.5) * 2.0 * self.CLIMB_RATE_MAX_M_S if use_thrust else 0.0
         rates = tuple(w if u else 0.0 for w, u in zip(body_rates_rad_s, use_rates))
         if use_att:
             n = math.sqrt(sum(c * c for c in q))
@@ -473,10 +525,27 @@ class Autopilot:
             if self.landed and sp.thrust_n < self.vehicle.hover_thrust_n:
                 self.vehicle.onboard.reset()  # on the ground: no integrator wind-up
             return sp
+        if mode == Mode.GUIDED:
+            sp = self.offboard_attitude
+            fresh = sp is not None and self.t - self.last_setpoint_time <= self.params.guided_timeout_s
+            if fresh:
+                assert sp is not None
+                self._guided_flying = True
+                if not self.offboard_uses_attitude:
+                    sp = AttitudeSetpoint(self._rate_reference(sp.omega_d_rad_s), sp.omega_d_rad_s, sp.thrust_n)
+                return self._guided_target(sp)
+            if self._guided_flying:  # GUID_TIMEOUT: stop flying targets, hold where it is
+                self._guided_flying = False
+                self._say(Severity.WARNING, "Guided: attitude target timed out, holding")
+                self.target = self.vehicle.tracked.pos_ned_m
+                self._restart_reference()
+            if self.landed:
+                self._reset_controllers()
+                return self._idle_setpoint()
         if mode == Mode.OFFBOARD:
             assert self.offboard_position is not None
             self.target, self.target_yaw = self.offboard_position
-        if self.landed and mode not in (Mode.TAKEOFF, Mode.OFFBOARD):
+        if self.landed and mode not in (Mode.TAKEOFF, Mode.OFFBOARD, Mode.GUIDED):
             self._reset_controllers()
             return self._idle_setpoint()
         if self._k % self.pos_div != 0:
@@ -495,6 +564,24 @@ class Autopilot:
         ref = self.ref_filter.update(self.target, self.target_yaw, self.pos_dt)
         meas = PositionMeasurement(ms.pos_ned_m, ms.vel_ned_m_s, v.estimator.q, sf_ned)
         return self.position_loop.update(meas, ref, self.pos_dt)
+
+    def _guided_target(self, sp: AttitudeSetpoint) -> AttitudeSetpoint:
+        """ArduPilot's handling of an attitude target: tilt clipped to ANGLE_MAX; thrust is
+        throttle with GUID_OPTIONS bit 3, else a climb rate held by a vertical-speed loop."""
+        q_d = sp.q_d
+        thrust_n = sp.thrust_n
+        if not self.params.guided_thrust_is_throttle:
+            v_up = -self.vehicle.tracked.vel_ned_m_s[2]
+            m = self.vehicle.scenario.vehicle
+            cos_tilt = max(math.cos(float(quat.tilt_angle(q_d))), 0.3)
+            thrust_n = m.mass_kg * (m.gravity_m_s2 + 2.0 * (self.guided_climb_rate_m_s - v_up)) / cos_tilt
+            thrust_n = min(max(thrust_n, 0.0), m.thrust_max_n)
+        if quat.tilt_angle(q_d) > math.radians(self.params.angle_max_deg):
+            f = quat.rotate(q_d, (0.0, 0.0, -1.0))
+            f = limit_force(f, 1e-3, math.radians(self.params.angle_max_deg))
+            yaw = float(quat.to_euler(q_d)[2])
+            q_d, _ = attitude_from_force(f, yaw)
+        return AttitudeSetpoint(q_d, sp.omega_d_rad_s, thrust_n)
 
     def _rate_reference(self, omega_d: Vec3) -> tuple:
         """Rates-only setpoints are flown as an attitude reference integrated from the commanded
@@ -527,7 +614,7 @@ class Autopilot:
             if abs(ms.pos_ned_m[2] - self.target[2]) < 0.1 and speed < 0.3:
                 self._say(Severity.INFO, "Takeoff complete")
                 target = self.target
-                self._enter(Mode.HOLD)
+                self._enter(Mode.GUIDED if self.ardupilot else Mode.HOLD)
                 self.target = target  # hold the take-off altitude, not where the check fired
 
     @property

@@ -59,7 +59,8 @@ def build(args: argparse.Namespace) -> MavlinkServer:
     # a live vehicle starts on the ground at the origin, whatever the scenario's setpoint says
     vehicle = SimVehicle(scenario, args.attitude, args.seed, (0.0, 0.0, scenario.airframe.ground_z_m), 0.0,
                          hovering=False)
-    ap = Autopilot(vehicle, AutopilotParams(strict_px4=args.flavour == "px4-strict"))
+    ap = Autopilot(vehicle, AutopilotParams(strict_px4=args.flavour == "px4-strict",
+                                            flavour="ardupilot" if args.flavour == "ardupilot" else "px4"))
     cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
                        origin=args.origin)
     server = MavlinkServer(ap, cfg)
@@ -96,8 +97,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--scenario", help="scenario file or bundled name: vehicle, wind, forces, gains")
     ap.add_argument("--attitude", choices=("pd", "pd_do", "ism_do"), default="ism_do",
                     help="onboard attitude controller")
-    ap.add_argument("--flavour", choices=("px4", "px4-strict"), default="px4",
-                    help="px4-strict: with an attitude, use only the yaw rate of SET_ATTITUDE_TARGET")
+    ap.add_argument("--flavour", choices=("px4", "px4-strict", "ardupilot"), default="px4",
+                    help="px4-strict: with an attitude, use only the yaw rate of SET_ATTITUDE_TARGET; "
+                         "ardupilot: behave like ArduCopter (GUIDED, GUID_OPTIONS, ANGLE_MAX, ...)")
     ap.add_argument("--param", type=parse_param, action="append", default=[], metavar="NAME=VALUE",
                     help="set a parameter at start, e.g. SIM_WIND_N=3 SIM_TURB_SIGMA=0.6 SIM_FORCE_X=6 "
                          "SIM_MASS_FAC=1.3 (repeatable; the full list: PARAM_REQUEST_LIST or docs/sitl.md)")

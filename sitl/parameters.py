@@ -181,6 +181,10 @@ def build_parameters(ap: Autopilot) -> ParamTable:
               ap_param("disarm_land_s")),
         Param("MPC_THR_HOVER", hover, 0.0, 1.0, "hover thrust, normalised (m g / T_max)"),
         Param("SIM_THRUST_MAX", sc.vehicle.thrust_max_n, 0.0, 1e3, "thrust at normalised 1.0 [N]"),
+    ]
+    if ap.ardupilot:
+        params = _ardupilot_params(ap, hover)
+    params += [
         Param("ATT_CTRL", float(ATTITUDE_KINDS.index(v.onboard.controller.kind)), 0.0, 2.0,
               "attitude controller: 0 PD, 1 PD+DO, 2 ISM+DO", att_kind),
         Param("ATT_W_C", g.omega_c_rad_s, 1.0, 60.0, "attitude omega_c [rad/s]", att_gain("omega_c_rad_s", False)),
@@ -218,3 +222,28 @@ def build_parameters(ap: Autopilot) -> ParamTable:
               "random seed of this vehicle"),
     ]
     return ParamTable(params)
+
+
+def _ardupilot_params(ap: Autopilot, hover: float) -> list[Param]:
+    """ArduCopter's names for what the companion needs (MAVLINK.md)."""
+
+    def ap_param(field: str, scale: float = 1.0) -> Callable[[float], None]:
+        def apply(x: float) -> None:
+            ap.params = dataclasses.replace(ap.params, **{field: x * scale})
+        return apply
+
+    def guid_options(x: float) -> None:
+        if x != int(x) or x < 0:
+            raise ValueError("GUID_OPTIONS is a bitmask (a non-negative integer)")
+        ap.params = dataclasses.replace(ap.params, guided_thrust_is_throttle=bool(int(x) & 8))
+
+    a = ap.params
+    return [
+        Param("GUID_OPTIONS", 8.0 if a.guided_thrust_is_throttle else 0.0, 0.0, 1023.0,
+              "bit 3 (8): SET_ATTITUDE_TARGET thrust is throttle, else a climb rate", guid_options),
+        Param("GUID_TIMEOUT", a.guided_timeout_s, 0.1, 5.0, "attitude targets older than this are not flown [s]",
+              ap_param("guided_timeout_s")),
+        Param("ANGLE_MAX", a.angle_max_deg * 100.0, 1000.0, 8000.0, "maximum lean angle [cdeg]",
+              ap_param("angle_max_deg", 0.01)),
+        Param("MOT_THST_HOVER", hover, 0.0, 1.0, "hover throttle, normalised"),
+    ]

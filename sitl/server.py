@@ -76,7 +76,8 @@ class MavlinkServer:
         self.mav = mavlink.MAVLink(None, srcSystem=cfg.sysid, srcComponent=cfg.compid)
         self.parser = mavlink.MAVLink(None)
         self.parser.robust_parsing = True
-        self.telemetry = Telemetry(ap, self.mav, cfg.origin, mavlink.MAV_AUTOPILOT_PX4)
+        autopilot = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA if ap.ardupilot else mavlink.MAV_AUTOPILOT_PX4
+        self.telemetry = Telemetry(ap, self.mav, cfg.origin, autopilot)
         self.params: ParamTable = build_parameters(ap)
         self.stats: Counter[str] = Counter()
         self.rejections: Counter[str] = Counter()
@@ -84,7 +85,9 @@ class MavlinkServer:
         self.transport: asyncio.DatagramTransport | None = None
         self.step_lateness_s: list[float] = []
         """wall-clock lateness of each loop pass (bounded ring), for the latency benchmark"""
-        self._intervals: dict[int, float] = {m: 1.0 / hz for m, hz in cfg.rates_hz.items() if hz > 0}
+        # ArduCopter sends only HEARTBEAT (and STATUSTEXT) until a client asks for streams
+        rates = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: 1.0} if ap.ardupilot else cfg.rates_hz
+        self._intervals: dict[int, float] = {m: 1.0 / hz for m, hz in rates.items() if hz > 0}
         self._due: dict[int, float] = {m: 0.0 for m in self._intervals}
         self._next_due = 0.0
         self._last_warning: dict[str, float] = {}

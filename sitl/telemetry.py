@@ -17,7 +17,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
 
-from .autopilot import Autopilot
+from .autopilot import Autopilot, custom_mode
 
 __all__ = ["GeoOrigin", "Telemetry", "DEFAULT_RATES_HZ", "SYS_STATUS_SENSORS", "PREARM_CHECK"]
 
@@ -123,7 +123,7 @@ class Telemetry:
         if ap.failsafe:
             status = mavlink.MAV_STATE_CRITICAL
         return self.mav.heartbeat_encode(
-            mavlink.MAV_TYPE_QUADROTOR, self.autopilot_type, base, ap.mode.custom_mode, status
+            mavlink.MAV_TYPE_QUADROTOR, self.autopilot_type, base, custom_mode(ap.mode, ap.params.flavour), status
         )
 
     def armable(self) -> bool:

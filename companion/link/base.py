@@ -81,8 +81,9 @@ class VehicleLink(abc.ABC):
         """SET_ATTITUDE_TARGET with quaternion, body rates and normalised thrust, now (no await)."""
 
     @abc.abstractmethod
-    async def get_param(self, name: str) -> float | None:
-        """The parameter's value, or None if the vehicle has no such parameter."""
+    async def get_param(self, name: str, timeout_s: float = 1.0, retries: int = 3) -> float | None:
+        """The parameter's value, or None if the vehicle has no such parameter (no answer after
+        ``retries`` tries of ``timeout_s``: autopilots do not answer for unknown names)."""
 
     @abc.abstractmethod
     async def set_param(self, name: str, value: float) -> float:

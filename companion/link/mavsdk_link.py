@@ -260,7 +260,7 @@ class MavsdkLink(VehicleLink):
                 fields["time_boot_ms"], self.state.sysid, 1, 0, fields["q"], fields["body_roll_rate"],
                 fields["body_pitch_rate"], fields["body_yaw_rate"], fields["thrust"]).pack(self._log_mav))
 
-    async def get_param(self, name: str) -> float | None:
+    async def get_param(self, name: str, timeout_s: float = 1.0, retries: int = 3) -> float | None:
         try:
             return float(await self.param.get_param_float(name))
         except Exception:

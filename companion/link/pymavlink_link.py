@@ -67,7 +67,7 @@ class PymavlinkLink(VehicleLink):
         self.command_retries = command_retries
         self._transport: asyncio.DatagramTransport | None = None
         self._peer: tuple[str, int] | None = self.address if self.direction == "out" else None
-        self._queue: asyncio.Queue[bytes] = asyncio.Queue(maxsize=QUEUE_SIZE)
+        self._queue: asyncio.Queue[tuple[bytes, float]] = asyncio.Queue(maxsize=QUEUE_SIZE)
         self._acks: dict[int, asyncio.Future[int]] = {}
         self._params: dict[str, asyncio.Future[float]] = {}
         self._connected = asyncio.Event()
@@ -111,7 +111,7 @@ class PymavlinkLink(VehicleLink):
             self.stats["foreign_datagrams"] += 1
             return
         try:
-            self._queue.put_nowait(data)
+            self._queue.put_nowait((data, time.monotonic()))  # stamped on arrival, not when parsed
         except asyncio.QueueFull:
             self.stats["dropped_queue_full"] += 1
 
@@ -121,14 +121,14 @@ class PymavlinkLink(VehicleLink):
         heartbeat_next = 0.0
         while not self._closed and not stop.is_set():
             try:
-                data = await asyncio.wait_for(self._queue.get(), timeout=0.2)
+                data, arrived = await asyncio.wait_for(self._queue.get(), timeout=0.2)
             except TimeoutError:
-                data = None
+                data, arrived = None, 0.0
             now = time.monotonic()
             if data is not None:
                 if self.traffic is not None:
                     self.traffic(data)
-                self._parse(data, now)
+                self._parse(data, arrived)
             if now >= heartbeat_next:
                 self._send(self.mav.heartbeat_encode(mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
                                                      mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
@@ -324,10 +324,10 @@ class PymavlinkLink(VehicleLink):
             self._params.pop(name, None)
         return None
 
-    async def get_param(self, name: str) -> float | None:
+    async def get_param(self, name: str, timeout_s: float = 1.0, retries: int = 3) -> float | None:
         target = (self.state.sysid or 1, self.state.compid or 1)
         return await self._param(name, lambda: self._send(
-            self.mav.param_request_read_encode(*target, name.encode("ascii"), -1)))
+            self.mav.param_request_read_encode(*target, name.encode("ascii"), -1)), timeout_s, retries)
 
     async def set_param(self, name: str, value: float) -> float:
         target = (self.state.sysid or 1, self.state.compid or 1)

@@ -190,3 +190,37 @@ def test_the_mavsdk_backend_flies_the_same_mission(sitl, companion):
     assert abs(seg["45 deg hover"]["force_estimate_n"][0] - 6.0) < 0.3
     assert seg["after release"]["rms_error_m"] < 0.15
     assert not s.stop()["armed"]
+
+
+def test_ardupilot_flavour_guided_throttle_and_lean_angle(sitl, companion, client):
+    """Against a vehicle that behaves like ArduCopter (autopilot 3, GUIDED, GUID_OPTIONS, ANGLE_MAX
+    30 deg, only heartbeats until streams are asked for): the companion asks for streams, makes
+    thrust mean throttle, raises ANGLE_MAX to its tilt bound and flies the 45 deg hover."""
+    s = sitl("--flavour", "ardupilot", speedup=SPEEDUP)
+    c = companion("missions/hover45.toml", s.url)
+    code, out = c.finish()
+    assert code == 0, out
+    assert "ANGLE_MAX raised from 30 to 60 deg" in out and "MOT_THST_HOVER" in out
+    seg = segments(c.flight_dir())
+    assert seg["_summary"]["autopilot"] == "ardupilot"
+    assert abs(seg["45 deg hover"]["force_estimate_n"][0] - 6.0) < 0.3
+    gcs = client(s.url, source_system=200)
+    assert gcs.param("GUID_OPTIONS") == 8.0 and gcs.param("ANGLE_MAX") == 6000.0
+    assert not s.stop()["armed"]
+
+
+def test_ardupilot_dead_companion_leaves_the_vehicle_holding_after_guid_timeout(sitl, companion, client):
+    """ArduCopter has no offboard-loss failsafe: it flies the last target for GUID_TIMEOUT (3 s),
+    then levels and holds in GUIDED (MAVLINK.md). The simulated vehicle does the same."""
+    s = sitl("--flavour", "ardupilot", speedup=SPEEDUP)
+    c = companion("missions/hover45.toml", s.url)
+    c.wait_for("step hover")
+    c.proc.kill()
+    obs = client(s.url, source_system=200)
+    obs.m.mav.request_data_stream_send(1, 1, 0, 10, 1)
+    obs.text("attitude target timed out", timeout=15)
+    time.sleep(2.0)
+    att = obs.latest("ATTITUDE")
+    assert abs(math.degrees(att.roll)) < 3 and abs(math.degrees(att.pitch)) < 3
+    report = s.stop()
+    assert report["armed"] and report["mode"] == "GUIDED"

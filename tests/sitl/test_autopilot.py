@@ -114,3 +114,52 @@ def test_a_mode_change_ends_the_failsafe():
     assert ap.failsafe is None
     run(ap, 8.0)
     assert ap.mode == Mode.HOLD and ap.armed  # no landing: the operator took over
+
+
+# --- ArduPilot flavour -----------------------------------------------------------------------
+
+
+def guided_airborne(**params):
+    ap = make(flavour="ardupilot", **params)
+    assert ap.command(22, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.DENIED  # not armed
+    ap.command(400, (1,))
+    assert ap.command(22, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.DENIED  # not GUIDED
+    assert ap.set_mode(Mode.GUIDED).result == MavResult.ACCEPTED
+    assert ap.command(22, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.ACCEPTED  # relative height
+    run(ap, 4.0)
+    assert ap.mode == Mode.GUIDED and ap.vehicle.state.pos_ned_m[2] == pytest.approx(-1.5, abs=0.05)
+    return ap
+
+
+def test_ardupilot_modes_are_copter_numbers():
+    from sitl.autopilot import custom_mode, mode_from_command
+
+    assert custom_mode(Mode.GUIDED, "ardupilot") == 4 and custom_mode(Mode.LAND, "ardupilot") == 9
+    assert custom_mode(Mode.TAKEOFF, "ardupilot") == 4  # take-off runs inside GUIDED
+    assert mode_from_command("ardupilot", 20, 0) == Mode.GUIDED  # GUIDED_NOGPS
+    assert mode_from_command("ardupilot", 6, 0) == Mode.RTL
+    assert custom_mode(Mode.OFFBOARD, "px4") == 6 << 16
+    assert make(flavour="ardupilot").set_mode(Mode.OFFBOARD).result == MavResult.DENIED
+
+
+def test_ardupilot_thrust_is_a_climb_rate_unless_guid_options_makes_it_throttle():
+    """0.5 holds altitude whatever the mass; with GUID_OPTIONS bit 3 the same 0.5 is throttle,
+    9.3 N against 6.18 N of weight, so the vehicle climbs."""
+    for throttle, climbs in ((False, False), (True, True)):
+        ap = guided_airborne(guided_thrust_is_throttle=throttle)
+        z0 = ap.vehicle.state.pos_ned_m[2]
+        stream(ap, 2.0, thrust=0.5)
+        dz = ap.vehicle.state.pos_ned_m[2] - z0
+        assert (dz < -1.0) if climbs else abs(dz) < 0.15, (throttle, dz)
+
+
+def test_ardupilot_clips_attitude_targets_to_angle_max_and_holds_after_guid_timeout():
+    ap = guided_airborne(guided_thrust_is_throttle=True, angle_max_deg=30.0, guided_timeout_s=1.0)
+    hover = 0.63 * 9.81 / ap.vehicle.scenario.vehicle.thrust_max_n
+    stream(ap, 0.6, q=quat.from_euler(math.radians(50.0), 0.0, 0.0), thrust=hover / math.cos(math.radians(30)))
+    assert math.degrees(quat.tilt_angle(ap.setpoint.q_d)) == pytest.approx(30.0, abs=0.1)
+    run(ap, 1.2)  # targets stop: after GUID_TIMEOUT it holds position, level, still in GUIDED
+    run(ap, 3.0)
+    assert ap.mode == Mode.GUIDED and ap.armed
+    assert math.degrees(quat.tilt_angle(ap.vehicle.state.q)) < 3.0
+    assert math.hypot(*ap.vehicle.state.vel_ned_m_s) < 0.3
