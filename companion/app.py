@@ -350,6 +350,21 @@ class Flight:
             self.guard, estimate_thrust=m.thrust.estimate,
         )
 
+    async def _arm(self, timeout_s: float) -> None:
+        """Arm once the autopilot says its pre-arm checks pass (an estimator still converging is
+        normal just after boot), retrying a refusal a few times before giving up."""
+        st = self.link.state
+        await self._until(lambda: st.armable is not False, timeout_s, "pre-arm checks to pass")
+        for attempt in range(4):
+            try:
+                await self.link.arm()
+                return
+            except LinkError as exc:
+                if attempt == 3:
+                    raise
+                self.log(f"{exc}; retrying")
+                await self._sleep_v(1.0)
+
     async def _ardupilot_lean_angle(self) -> None:
         """ArduCopter clips attitude targets to ANGLE_MAX (30 deg by default): raise it to the
         mission's tilt bound, or the 45 deg hover could never be flown."""
@@ -367,7 +382,7 @@ class Flight:
         assert c is not None
         if s.action == "takeoff":
             if not st.armed:
-                await link.arm()
+                await self._arm(s.timeout_s)
             ground = st.pos_ned_m[2]
             await link.takeoff(s.altitude_m)
             target = ground - s.altitude_m

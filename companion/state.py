@@ -32,6 +32,8 @@ class VehicleState:
     offboard: bool = False
     """the autopilot is in the mode that flies our attitude setpoints"""
     landed_state: int = 0
+    armable: bool | None = None
+    """the autopilot's pre-arm checks pass (SYS_STATUS pre-arm bit); None if it does not say"""
     wall_heartbeat: float = -math.inf
 
     pos_ned_m: Vec3 = (0.0, 0.0, 0.0)

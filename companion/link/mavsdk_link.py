@@ -131,7 +131,7 @@ class MavsdkLink(VehicleLink):
         try:
             async with asyncio.TaskGroup() as tg:
                 for coro in (self._attitude(), self._rates(), self._position(), self._imu(), self._mode(),
-                             self._armed(), self._landed(), self._texts(), self._sender()):
+                             self._armed(), self._landed(), self._texts(), self._health(), self._sender()):
                     tg.create_task(coro)
                 await stop.wait()
                 raise _Stop()
@@ -187,6 +187,10 @@ class MavsdkLink(VehicleLink):
     async def _landed(self) -> None:
         async for landed in self.telemetry.subscribe_landed_state():
             self.state.landed_state = {"ON_GROUND": 1, "IN_AIR": 2, "TAKING_OFF": 3, "LANDING": 4}.get(landed.name, 0)
+
+    async def _health(self) -> None:
+        async for h in self.telemetry.subscribe_health():
+            self.state.armable = bool(h.is_armable)
 
     async def _texts(self) -> None:
         async for text in self.telemetry.subscribe_status_text():

@@ -199,6 +199,10 @@ class PymavlinkLink(VehicleLink):
                 self.clock.observe(t, wall)
         elif kind == "EXTENDED_SYS_STATE":
             st.landed_state = msg.landed_state
+        elif kind == "SYS_STATUS":
+            prearm = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+            if msg.onboard_control_sensors_present & prearm:
+                st.armable = bool(msg.onboard_control_sensors_health & prearm)
         elif kind == "STATUSTEXT":
             st.statustexts.append((msg.severity, msg.text))
         elif kind == "COMMAND_ACK":
