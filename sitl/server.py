@@ -22,6 +22,8 @@ from typing import Any, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.link.wire import new_parser, parse_datagram
+
 from .autopilot import Autopilot, MavResult, Severity
 from .parameters import ParamTable, build_parameters
 from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
@@ -29,7 +31,6 @@ from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
 __all__ = ["ServerConfig", "MavlinkServer"]
 
 MAX_DATAGRAM = 4096
-_INITIAL_EXPECTED_LENGTH = mavlink.MAVLink(None).expected_length  # parser state before any byte
 MAX_PEERS = 16
 PEER_TIMEOUT_S = 30.0
 
@@ -74,8 +75,7 @@ class MavlinkServer:
         self.config = cfg = config or ServerConfig()
         ap.origin_alt_m = cfg.origin.alt_m
         self.mav = mavlink.MAVLink(None, srcSystem=cfg.sysid, srcComponent=cfg.compid)
-        self.parser = mavlink.MAVLink(None)
-        self.parser.robust_parsing = True
+        self.parser = new_parser()
         autopilot = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA if ap.ardupilot else mavlink.MAV_AUTOPILOT_PX4
         self.telemetry = Telemetry(ap, self.mav, cfg.origin, autopilot)
         self.params: ParamTable = build_parameters(ap)
@@ -168,25 +168,14 @@ class MavlinkServer:
         if len(data) > MAX_DATAGRAM:
             st["oversized"] += 1
             return
-        p = self.parser
-        # parse every datagram on its own: a truncated frame must not eat the next datagram
-        p.buf = bytearray()
-        p.buf_index = 0
-        p.expected_length = _INITIAL_EXPECTED_LENGTH
-        p.have_prefix_error = False
-        try:
-            msgs = p.parse_buffer(data) or []
-        except Exception:  # pymavlink raises on some malformed input even in robust mode
-            st["bad_data"] += 1
-            return
-        if p.buf_len() > 0:
+        parsed = parse_datagram(self.parser, data)
+        if parsed.bad:
+            st["bad_data"] += parsed.bad
+        if parsed.truncated:
             st["truncated"] += 1
         good = False
-        for msg in msgs:
+        for msg in parsed.messages:
             kind = msg.get_type()
-            if kind == "BAD_DATA" or kind == "BAD_SIGNATURE":
-                st["bad_data"] += 1
-                continue
             good = True
             st["messages"] += 1
             handler = self._handlers.get(kind)

@@ -24,11 +24,11 @@ from companion.state import VehicleState
 
 from .base import LinkError, TrafficHook, VehicleLink, parse_url
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
+from .wire import new_parser, parse_datagram
 
 __all__ = ["PymavlinkLink"]
 
 QUEUE_SIZE = 2000
-_INITIAL_EXPECTED_LENGTH = mavlink.MAVLink(None).expected_length
 
 # telemetry the controller needs, and how often (Hz); asked for at connection
 STREAM_RATES_HZ = {
@@ -61,8 +61,7 @@ class PymavlinkLink(VehicleLink):
         self.flavour: Flavour | None = None
         self.stats: Counter[str] = Counter()
         self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-        self.parser = mavlink.MAVLink(None)
-        self.parser.robust_parsing = True
+        self.parser = new_parser()
         self.command_timeout_s = command_timeout_s
         self.command_retries = command_retries
         self._transport: asyncio.DatagramTransport | None = None
@@ -135,21 +134,11 @@ class PymavlinkLink(VehicleLink):
                 heartbeat_next = now + 1.0
 
     def _parse(self, data: bytes, wall: float) -> None:
-        p = self.parser
-        p.buf = bytearray()
-        p.buf_index = 0
-        p.expected_length = _INITIAL_EXPECTED_LENGTH
-        p.have_prefix_error = False
-        try:
-            msgs = p.parse_buffer(data) or []
-        except Exception:
-            self.stats["bad_data"] += 1
-            return
-        for msg in msgs:
+        parsed = parse_datagram(self.parser, data)
+        if parsed.bad:
+            self.stats["bad_data"] += parsed.bad
+        for msg in parsed.messages:
             kind = msg.get_type()
-            if kind in ("BAD_DATA", "BAD_SIGNATURE"):
-                self.stats["bad_data"] += 1
-                continue
             try:
                 self._handle(kind, msg, wall)
             except Exception:  # a malformed field must not stop the reader
