@@ -1,0 +1,515 @@
+"""Monte-Carlo sweeps: many offline flights, one tidy table.
+
+    sitl-sweep sitl/sweeps/e3_wind.toml                          # all local cores
+    sitl-sweep my_sweep.toml --scheduler tcp://10.0.0.5:8786      # a Dask cluster
+    sitl-sweep my_sweep.toml --retry-failed                       # re-run only what failed
+
+A sweep file names a scenario, the controller combinations, the seeds, parameter grids
+(cartesian) and/or random ranges (uniform, seeded), the metric segment and the metrics::
+
+    name = "e3_wind"
+    scenario = "E3_wind"
+    position = ["pid", "pd_do", "ism_do"]
+    attitude = ["ism_do"]
+    seeds = { first = 1, count = 100 }
+    segment = "hover"
+    metrics = ["rms_horizontal_error_m", "peak_error_m"]
+    [grid]
+    wind_speed_m_s = [0.0, 3.0]
+    [random]
+    samples = 20
+    seed = 7
+    ranges = { "model_error.mass_factor" = [0.9, 1.1] }
+
+Parameters are dotted paths into the scenario (``attitude.omega_c_rad_s``,
+``position.observer_gain_rad_s`` — all three axes — or ``position.observer_gain_rad_s[2]``) or
+one of the named ones in :data:`NAMED_PARAMETERS`.
+
+Cases that differ only in their seed run as one batch of vehicles (the simulator's array form,
+bit-identical to one-vehicle runs). Results are appended to ``OUT/<name>/cases.csv`` as batches
+finish: one row per case with its parameters, status and metrics. A re-run skips the cases
+already in the table (``--retry-failed`` re-runs the failed ones); a failed case is recorded with
+its error, never dropped. Execution: local processes (``--jobs``, default all cores), or any Dask
+distributed scheduler (``--scheduler ADDRESS``); the same seeds give the same numbers either way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+import os
+import random
+import sys
+import time
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+
+from companion.config import ConfigError, load_toml, locate
+from companion.control.attitude import ATTITUDE_CONTROLLERS
+from companion.control.position import POSITION_CONTROLLERS
+
+from .metrics import SegmentMetrics, segment_metrics
+from .scenario import Scenario, Segment, load_scenario
+from .simulation import simulate
+
+__all__ = ["SweepSpec", "Task", "NAMED_PARAMETERS", "load_sweep", "apply_parameters", "plan", "run_task",
+           "run_sweep", "main"]
+
+SWEEP_DIR = Path(__file__).parent / "sweeps"
+METRICS = tuple(f.name for f in dataclasses.fields(SegmentMetrics) if f.name != "segment")
+
+
+def _wind_speed(sc: Scenario, v: float) -> Scenario:
+    return sc.with_changes(wind=dataclasses.replace(sc.wind, mean_ned_m_s=(v, 0.0, 0.0)))
+
+
+def _turbulence(sc: Scenario, sigma: float) -> Scenario:
+    t = sc.wind.turbulence
+    turb = dataclasses.replace(t, enabled=sigma > 0.0, sigma_m_s=(sigma, sigma, 2.0 * sigma / 3.0))
+    return sc.with_changes(wind=dataclasses.replace(sc.wind, turbulence=turb))
+
+
+def _mass_error(sc: Scenario, x: float) -> Scenario:
+    return sc.with_changes(model_error=dataclasses.replace(sc.model_error, mass_factor=1.0 + x))
+
+
+def _force(sc: Scenario, magnitude: float) -> Scenario:
+    if not sc.forces:
+        raise ValueError("force_n: the scenario has no force profile to scale")
+    out = []
+    for p in sc.forces:
+        n = math.sqrt(sum(c * c for c in p.value))
+        out.append(dataclasses.replace(p, value=tuple(c * magnitude / n for c in p.value) if n else p.value))
+    return sc.with_changes(forces=tuple(out))
+
+
+NAMED_PARAMETERS: dict[str, Callable[[Scenario, float], Scenario]] = {
+    "wind_speed_m_s": _wind_speed,
+    "turbulence_sigma_m_s": _turbulence,
+    "mass_error": _mass_error,
+    "force_n": _force,
+}
+"""wind_speed_m_s: mean wind along north; turbulence_sigma_m_s: Dryden intensity (u, v; w gets
+2/3); mass_error: plant mass = model mass x (1 + value); force_n: every force profile scaled to
+this magnitude, direction kept."""
+
+
+def apply_parameters(sc: Scenario, params: dict[str, float]) -> Scenario:
+    """The scenario with ``params`` (named or dotted-path) applied, in order."""
+    for path, value in params.items():
+        if path in NAMED_PARAMETERS:
+            sc = NAMED_PARAMETERS[path](sc, value)
+            continue
+        table, _, rest = path.partition(".")
+        index = None
+        if rest.endswith("]"):
+            rest, _, idx = rest[:-1].partition("[")
+            index = int(idx)
+        sub = getattr(sc, table)
+        current = getattr(sub, rest)
+        if isinstance(current, tuple):
+            items = list(current)
+            if index is None:
+                items = [value] * len(items)
+            else:
+                items[index] = value
+            new: object = tuple(float(x) for x in items)
+        elif isinstance(current, bool):
+            new = bool(value)
+        else:
+            new = float(value)
+        sc = sc.with_changes(**{table: dataclasses.replace(sub, **{rest: new})})
+    return sc
+
+
+def _check_path(sc: Scenario, path: str) -> None:
+    if path in NAMED_PARAMETERS:
+        return
+    table, _, rest = path.partition(".")
+    rest = rest.split("[", 1)[0]
+    if not rest or not hasattr(sc, table) or not dataclasses.is_dataclass(getattr(sc, table)) or not hasattr(
+        getattr(sc, table), rest
+    ):
+        raise ValueError(f"{path!r} is not a scenario parameter (a dotted path such as attitude.omega_c_rad_s, "
+                         f"or one of {', '.join(NAMED_PARAMETERS)})")
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    name: str
+    scenario: Scenario
+    position: tuple[str, ...]
+    attitude: tuple[str, ...]
+    seeds: tuple[int, ...]
+    segment: str
+    metrics: tuple[str, ...]
+    grid: dict[str, list[float]] = field(default_factory=dict)
+    random_samples: int = 0
+    random_seed: int = 0
+    random_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    batch_size: int = 100
+    source: str = ""
+
+    @property
+    def parameter_names(self) -> list[str]:
+        return list(self.grid) + list(self.random_ranges)
+
+    def parameter_sets(self) -> list[dict[str, float]]:
+        """Grid points x random samples (or just one of them, or one empty set)."""
+        grid = [dict(zip(self.grid, combo)) for combo in itertools.product(*self.grid.values())] if self.grid else [{}]
+        if not self.random_ranges:
+            return grid
+        rng = random.Random(self.random_seed)
+        samples = [{k: rng.uniform(lo, hi) for k, (lo, hi) in self.random_ranges.items()}
+                   for _ in range(self.random_samples)]
+        return [{**g, **r} for g in grid for r in samples]
+
+
+def load_sweep(path: str | Path) -> SweepSpec:
+    p = Path(path)
+    if not p.exists() and (SWEEP_DIR / f"{path}.toml").exists():
+        p = SWEEP_DIR / f"{path}.toml"
+    data, text = load_toml(p)
+
+    def fail(key: str, reason: str) -> ConfigError:
+        return ConfigError(p, locate(text, key), key, reason)
+
+    allowed = {"name", "description", "scenario", "position", "attitude", "seeds", "segment", "window_s",
+               "metrics", "duration_s", "grid", "random", "batch_size"}
+    for k in data:
+        if k not in allowed:
+            raise fail(k, f"unknown key; expected one of: {', '.join(sorted(allowed))}")
+    if "scenario" not in data:
+        raise fail("", "a sweep needs scenario = \"NAME or path\"")
+    scen_path = data["scenario"]
+    if not Path(scen_path).exists() and (p.parent / scen_path).exists():
+        scen_path = str(p.parent / scen_path)
+    sc = load_scenario(scen_path)
+    if "duration_s" in data:
+        sc = sc.with_changes(duration_s=float(data["duration_s"]))
+    position = tuple(data.get("position", sc.runs.position))
+    attitude = tuple(data.get("attitude", sc.runs.attitude))
+    for key, names, allowed_names in (("position", position, POSITION_CONTROLLERS),
+                                      ("attitude", attitude, ATTITUDE_CONTROLLERS)):
+        for n in names:
+            if n not in allowed_names:
+                raise fail(key, f"{n!r}: expected one of {', '.join(allowed_names)}")
+    seeds_raw = data.get("seeds", list(sc.runs.seeds))
+    if isinstance(seeds_raw, dict):
+        if set(seeds_raw) != {"first", "count"}:
+            raise fail("seeds", "expected a list of integers or { first = N, count = M }")
+        seeds = tuple(range(int(seeds_raw["first"]), int(seeds_raw["first"]) + int(seeds_raw["count"])))
+    elif isinstance(seeds_raw, list) and all(isinstance(s, int) for s in seeds_raw):
+        seeds = tuple(seeds_raw)
+    else:
+        raise fail("seeds", "expected a list of integers or { first = N, count = M }")
+    if "window_s" in data:  # a metric window of its own, replacing the scenario's segments
+        lo, hi = (float(x) for x in data["window_s"])
+        sc = sc.with_changes(segments=(Segment("window", lo, hi),))
+        data.setdefault("segment", "window")
+    segments = [s.name for s in sc.segments]
+    segment = data.get("segment", segments[0] if segments else "flight")
+    if segments and segment not in segments:
+        raise fail("segment", f"expected one of the scenario's segments: {', '.join(segments)}")
+    chosen = next((s for s in sc.segments if s.name == segment), None)
+    if chosen is not None and chosen.start_s >= sc.duration_s:
+        raise fail("segment" if "window_s" not in data else "window_s",
+                   f"{segment!r} starts at {chosen.start_s:g} s, after the flight's {sc.duration_s:g} s")
+    metrics = tuple(data.get("metrics", ("rms_horizontal_error_m", "rms_error_m", "peak_error_m")))
+    for m in metrics:
+        if m not in METRICS:
+            raise fail("metrics", f"{m!r}: expected one of {', '.join(METRICS)}")
+    def numbers(key: str, v: object, n: int | None = None) -> list[float]:
+        if not isinstance(v, list) or not v or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                       for x in v) or (n is not None and len(v) != n):
+            want = f"a list of {n} numbers" if n else "a list of numbers"
+            raise fail(key, f"expected {want}; dotted parameter names must be quoted: "
+                            f"\"attitude.omega_c_rad_s\" = [...]")
+        return [float(x) for x in v]
+
+    grid = {k: numbers(f"grid.{k}", v) for k, v in data.get("grid", {}).items()}
+    rnd = data.get("random", {})
+    ranges = {k: tuple(numbers(f"random.ranges.{k}", v, 2)) for k, v in rnd.get("ranges", {}).items()}
+    for key in [*grid, *ranges]:
+        try:
+            _check_path(sc, key)
+            apply_parameters(sc, {key: (grid[key][0] if key in grid else ranges[key][0])})
+        except (ValueError, TypeError, AttributeError) as exc:
+            where = f"grid.{key}" if key in grid else f"random.ranges.{key}"
+            raise fail(where, str(exc)) from None
+    if ranges and int(rnd.get("samples", 0)) < 1:
+        raise fail("random", "random ranges need samples = N (at least 1)")
+    return SweepSpec(
+        name=str(data.get("name", p.stem)), scenario=sc, position=position, attitude=attitude, seeds=seeds,
+        segment=segment, metrics=metrics, grid=grid, random_samples=int(rnd.get("samples", 0)),
+        random_seed=int(rnd.get("seed", 0)), random_ranges=ranges, batch_size=int(data.get("batch_size", 100)),
+        source=str(p),
+    )
+
+
+# --- tasks -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Task:
+    """One batch: a scenario with its parameters, one controller pair, several seeds."""
+
+    scenario: Scenario
+    params: dict[str, float]
+    position: str
+    attitude: str
+    seeds: tuple[int, ...]
+    segment: str
+    metrics: tuple[str, ...]
+
+
+def case_id(params: dict[str, float], position: str, attitude: str, seed: int) -> str:
+    key = json.dumps({"p": params, "pos": position, "att": attitude, "seed": seed}, sort_keys=True)
+    return hashlib.sha1(key.encode()).hexdigest()[:16]
+
+
+def plan(spec: SweepSpec, skip: set[str] = frozenset()) -> tuple[list[Task], int]:  # type: ignore[assignment]
+    """Tasks for every case not in ``skip``, and the total number of cases."""
+    tasks: list[Task] = []
+    total = 0
+    for params in spec.parameter_sets():
+        sc = apply_parameters(spec.scenario, params)
+        for att in spec.attitude:
+            for pos in spec.position:
+                todo = [s for s in spec.seeds if case_id(params, pos, att, s) not in skip]
+                total += len(spec.seeds)
+                for i in range(0, len(todo), spec.batch_size):
+                    tasks.append(Task(sc, params, pos, att, tuple(todo[i:i + spec.batch_size]), spec.segment,
+                                      spec.metrics))
+    return tasks, total
+
+
+def run_task(task: Task) -> list[dict[str, Any]]:
+    """Fly one batch and return one row per seed (a failure becomes rows with the error)."""
+    t0 = time.monotonic()
+    base = {"position": task.position, "attitude": task.attitude, **task.params}
+    try:
+        seeds = list(task.seeds) if len(task.seeds) > 1 else task.seeds[0]
+        log = simulate(task.scenario, task.position, task.attitude, seeds)
+        seg = next((s for s in task.scenario.segments if s.name == task.segment),
+                   Segment("flight", 0.0, task.scenario.duration_s + 1e-9))
+        rows = []
+        for i, seed in enumerate(task.seeds):
+            one = log.vehicle(i) if len(task.seeds) > 1 else log
+            m = segment_metrics(one, seg)
+            values = {k: getattr(m, k) for k in task.metrics}
+            finite = all(math.isfinite(v) for k, v in values.items() if k != "settling_time_s")
+            status = "ok" if finite and m.peak_error_m < 100.0 else "diverged"
+            rows.append({"case": case_id(task.params, task.position, task.attitude, seed), **base, "seed": seed,
+                         "status": status, "error": "" if status == "ok" else "non-finite or > 100 m error",
+                         **values})
+    except Exception as exc:  # recorded per case, never dropped
+        rows = [{"case": case_id(task.params, task.position, task.attitude, s), **base, "seed": s,
+                 "status": "failed", "error": f"{type(exc).__name__}: {exc}"[:300],
+                 **{k: math.nan for k in task.metrics}} for s in task.seeds]
+    wall = (time.monotonic() - t0) / max(len(task.seeds), 1)
+    for r in rows:
+        r["wall_s"] = round(wall, 4)
+    return rows
+
+
+# --- execution -------------------------------------------------------------------------------
+
+
+def _columns(spec: SweepSpec) -> list[str]:
+    return ["case", "position", "attitude", *spec.parameter_names, "seed", "status", "error", *spec.metrics,
+            "wall_s"]
+
+
+def _read_table(path: Path) -> list[dict[str, str]]:
+    if not path.exists():
+        return []
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+Submit = Callable[[Task], Any]
+Completed = Callable[[list[Any]], Iterable[Any]]
+
+
+def _executor(jobs: int | None, scheduler: str | None) -> tuple[Submit, Completed, Callable[[], None]]:
+    """(submit, as_completed, close) for local processes or a Dask scheduler."""
+    if scheduler:
+        from distributed import Client
+        from distributed import as_completed as dask_completed
+
+        client = Client(scheduler)
+        return (lambda t: client.submit(run_task, t, pure=False), lambda fs: dask_completed(fs),
+                client.close)
+    pool = ProcessPoolExecutor(max_workers=jobs or os.cpu_count() or 1)
+    return (lambda t: pool.submit(run_task, t), lambda fs: as_completed(fs), lambda: pool.shutdown(cancel_futures=True))
+
+
+def run_sweep(spec: SweepSpec, out_dir: Path, jobs: int | None = None, scheduler: str | None = None,
+              retry_failed: bool = False, progress: bool = True, plots: bool = True) -> Path:
+    """Run every unfinished case; returns the case table's path."""
+    folder = out_dir / spec.name
+    folder.mkdir(parents=True, exist_ok=True)
+    table = folder / "cases.csv"
+    columns = _columns(spec)
+    existing = _read_table(table)
+    if existing and list(existing[0]) != columns:
+        raise ValueError(f"{table} has other columns than this sweep produces; use another --out")
+    keep = [r for r in existing if not (retry_failed and r["status"] != "ok")]
+    if len(keep) != len(existing):  # rewrite without the failures we are about to retry
+        with open(table, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=columns)
+            w.writeheader()
+            w.writerows(keep)
+    done = {r["case"] for r in keep}
+    tasks, total = plan(spec, done)
+    todo = sum(len(t.seeds) for t in tasks)
+    if progress:
+        print(f"sweep {spec.name}: {total} cases, {len(done)} already done, {todo} to run in {len(tasks)} batches",
+              file=sys.stderr, flush=True)
+    new_file = not table.exists() or not keep and not existing
+    if tasks:
+        submit, completed, close = _executor(jobs, scheduler)
+        t0 = time.monotonic()
+        finished = 0
+        try:
+            with open(table, "a" if not new_file else "w", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=columns)
+                if new_file:
+                    w.writeheader()
+                futures: list[Future[Any]] = [submit(t) for t in tasks]
+                for fut in completed(futures):
+                    rows = fut.result()
+                    w.writerows(rows)
+                    f.flush()
+                    finished += len(rows)
+                    if progress:
+                        rate = finished / max(time.monotonic() - t0, 1e-9)
+                        left = (todo - finished) / rate
+                        print(f"\r  {finished}/{todo} cases, {rate:.1f} cases/s, {left:.0f} s left ",
+                              end="", file=sys.stderr, flush=True)
+        finally:
+            close()
+        if progress:
+            print(file=sys.stderr)
+    if plots:
+        draw_sweep(spec, table)
+    return table
+
+
+# --- summary -----------------------------------------------------------------------------------
+
+
+def load_cases(table: Path) -> list[dict[str, Any]]:
+    rows: list[dict[str, Any]] = []
+    for r in _read_table(table):
+        out: dict[str, Any] = {}
+        for k, v in r.items():
+            try:
+                out[k] = float(v) if k not in ("case", "position", "attitude", "status", "error") else v
+            except ValueError:
+                out[k] = v
+        rows.append(out)
+    return rows
+
+
+def draw_sweep(spec: SweepSpec, table: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [r for r in load_cases(table) if r["status"] == "ok"]
+    if not rows:
+        return []
+    names = {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD"}
+    combos = [(p, a) for a in spec.attitude for p in spec.position]
+    label = {c: f"{names[c[0]]}/{names[c[1]]}" for c in combos}
+    out = []
+    fig, axs = plt.subplots(1, len(spec.metrics), figsize=(5 * len(spec.metrics), 4.5), squeeze=False)
+    for ax, metric in zip(axs[0], spec.metrics):
+        data = [[r[metric] for r in rows if (r["position"], r["attitude"]) == c] for c in combos]
+        ax.boxplot(data, showfliers=True)
+        ax.set_xticks(range(1, len(combos) + 1), [label[c] for c in combos], rotation=40, ha="right", fontsize=8)
+        ax.set_title(metric, fontsize=9)
+        ax.grid(alpha=0.3, axis="y")
+    n = len(spec.seeds) * max(1, len(spec.parameter_sets()))
+    fig.suptitle(f"{spec.name}: {spec.scenario.description} ({n} cases per combination)", fontsize=10)
+    fig.tight_layout()
+    path = table.parent / "boxplots.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    out.append(path)
+    for param in spec.parameter_names:
+        fig, axs = plt.subplots(1, len(spec.metrics), figsize=(5 * len(spec.metrics), 4), squeeze=False)
+        for ax, metric in zip(axs[0], spec.metrics):
+            for c in combos:
+                xs = np.array([r[param] for r in rows if (r["position"], r["attitude"]) == c])
+                ys = np.array([r[metric] for r in rows if (r["position"], r["attitude"]) == c])
+                ax.scatter(xs, ys, s=6, alpha=0.4, label=label[c])
+                if len(set(xs.tolist())) <= 12:
+                    u = sorted(set(xs.tolist()))
+                    ax.plot(u, [np.median(ys[xs == x]) for x in u], lw=1.2)
+            ax.set_xlabel(param)
+            ax.set_ylabel(metric)
+            ax.grid(alpha=0.3)
+        axs[0][0].legend(fontsize=7)
+        fig.tight_layout()
+        path = table.parent / f"vs_{param.replace('.', '_').replace('[', '_').replace(']', '')}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        out.append(path)
+    return out
+
+
+def summary(spec: SweepSpec, table: Path) -> str:
+    rows = load_cases(table)
+    lines = [f"sweep {spec.name}: {len(rows)} cases in {table}",
+             f"{'position/attitude':>20} {'ok':>5} {'failed':>7} " + " ".join(f"{m + ' median [IQR]':>36}"
+                                                                            for m in spec.metrics)]
+    for a in spec.attitude:
+        for p in spec.position:
+            rs = [r for r in rows if r["position"] == p and r["attitude"] == a]
+            ok = [r for r in rs if r["status"] == "ok"]
+            cells = []
+            for m in spec.metrics:
+                v = np.array([r[m] for r in ok], dtype=float)
+                cells.append(f"{np.median(v):.4g} [{np.percentile(v, 25):.3g}, {np.percentile(v, 75):.3g}]"
+                             if len(v) else "-")
+            head = f"{p + '/' + a:>20} {len(ok):>5} {len(rs) - len(ok):>7} "
+            lines.append(head + " ".join(f"{c:>36}" for c in cells))
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="sitl-sweep", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("sweep", help="sweep file, or a bundled name (sitl/sweeps/)")
+    ap.add_argument("--out", type=Path, default=Path("sweeps"), help="output folder (default: sweeps)")
+    ap.add_argument("--jobs", type=int, help="local worker processes (default: all cores)")
+    ap.add_argument("--scheduler", help="address of a Dask distributed scheduler, e.g. tcp://host:8786")
+    ap.add_argument("--retry-failed", action="store_true", help="run the failed cases again")
+    ap.add_argument("--no-plots", action="store_true")
+    args = ap.parse_args(argv)
+    try:
+        spec = load_sweep(args.sweep)
+    except ConfigError as exc:
+        print(f"sitl-sweep: error: {exc}", file=sys.stderr)
+        return 2
+    table = run_sweep(spec, args.out, args.jobs, args.scheduler, args.retry_failed, plots=not args.no_plots)
+    print(summary(spec, table))
+    return 0
+
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
