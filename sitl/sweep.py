@@ -61,8 +61,8 @@ from .metrics import SegmentMetrics, segment_metrics
 from .scenario import Scenario, Segment, load_scenario
 from .simulation import simulate
 
-__all__ = ["SweepSpec", "Task", "NAMED_PARAMETERS", "load_sweep", "apply_parameters", "plan", "run_task",
-           "run_sweep", "main"]
+__all__ = ["SweepSpec", "Task", "Member", "stack_gains", "NAMED_PARAMETERS", "load_sweep", "apply_parameters",
+           "plan", "fly_batch", "run_task", "run_sweep", "main"]
 
 SWEEP_DIR = Path(__file__).parent / "sweeps"
 METRICS = tuple(f.name for f in dataclasses.fields(SegmentMetrics) if f.name != "segment")
@@ -260,16 +260,61 @@ def load_sweep(path: str | Path) -> SweepSpec:
 
 
 @dataclass(frozen=True)
-class Task:
-    """One batch: a scenario with its parameters, one controller pair, several seeds."""
+class Member:
+    """One parameter set of a batch and the seeds it flies."""
 
-    scenario: Scenario
     params: dict[str, float]
+    scenario: Scenario
+    seeds: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Task:
+    """One batch of vehicles: one controller pair; parameter sets that differ only in gains; seeds."""
+
+    members: tuple[Member, ...]
     position: str
     attitude: str
-    seeds: tuple[int, ...]
     segment: str
     metrics: tuple[str, ...]
+
+    @property
+    def seeds(self) -> tuple[int, ...]:
+        return tuple(s for m in self.members for s in m.seeds)
+
+
+GAIN_TABLES = ("attitude", "position")
+"""Scenario tables whose numbers the control laws accept as per-vehicle arrays."""
+
+
+def is_gain(path: str) -> bool:
+    return path.partition(".")[0] in GAIN_TABLES
+
+
+def stack_gains(members: Sequence[Member]) -> Scenario:
+    """One scenario for all members: each gain that differs becomes an array over the vehicles.
+
+    Vehicle order is member by member, seed by seed (as :attr:`Task.seeds`). The members must
+    differ only in the gain tables (:func:`plan` groups them so).
+    """
+    first = members[0].scenario
+    counts = [len(m.seeds) for m in members]
+    changes: dict[str, Any] = {}
+    for table in GAIN_TABLES:
+        subs = [getattr(m.scenario, table) for m in members]
+        fields: dict[str, Any] = {}
+        for f in dataclasses.fields(subs[0]):
+            values = [getattr(sub, f.name) for sub in subs]
+            if all(v == values[0] for v in values):
+                continue
+            if isinstance(values[0], tuple):
+                fields[f.name] = tuple(np.repeat(np.array([v[i] for v in values], dtype=float), counts)
+                                       for i in range(len(values[0])))
+            else:
+                fields[f.name] = np.repeat(np.array(values, dtype=float), counts)
+        if fields:
+            changes[table] = dataclasses.replace(subs[0], **fields)
+    return first.with_changes(**changes) if changes else first
 
 
 def case_id(params: dict[str, float], position: str, attitude: str, seed: int) -> str:
@@ -278,45 +323,92 @@ def case_id(params: dict[str, float], position: str, attitude: str, seed: int) -
 
 
 def plan(spec: SweepSpec, skip: set[str] = frozenset()) -> tuple[list[Task], int]:  # type: ignore[assignment]
-    """Tasks for every case not in ``skip``, and the total number of cases."""
+    """Tasks for every case not in ``skip``, and the total number of cases.
+
+    Cases that differ only in seed, or only in seed and gains, share a task (one batch of
+    vehicles) of at most ``batch_size`` vehicles.
+    """
+    groups: dict[str, list[tuple[dict[str, float], Scenario]]] = {}
+    for params in spec.parameter_sets():
+        key = json.dumps({k: v for k, v in params.items() if not is_gain(k)}, sort_keys=True)
+        groups.setdefault(key, []).append((params, apply_parameters(spec.scenario, params)))
     tasks: list[Task] = []
     total = 0
-    for params in spec.parameter_sets():
-        sc = apply_parameters(spec.scenario, params)
-        for att in spec.attitude:
-            for pos in spec.position:
-                todo = [s for s in spec.seeds if case_id(params, pos, att, s) not in skip]
-                total += len(spec.seeds)
-                for i in range(0, len(todo), spec.batch_size):
-                    tasks.append(Task(sc, params, pos, att, tuple(todo[i:i + spec.batch_size]), spec.segment,
-                                      spec.metrics))
+    for att in spec.attitude:
+        for pos in spec.position:
+            for group in groups.values():
+                pending: list[Member] = []
+                size = 0
+                for params, sc in group:
+                    total += len(spec.seeds)
+                    todo = [s for s in spec.seeds if case_id(params, pos, att, s) not in skip]
+                    for i in range(0, len(todo), spec.batch_size):
+                        chunk = tuple(todo[i:i + spec.batch_size])
+                        if pending and size + len(chunk) > spec.batch_size:
+                            tasks.append(Task(tuple(pending), pos, att, spec.segment, spec.metrics))
+                            pending, size = [], 0
+                        pending.append(Member(params, sc, chunk))
+                        size += len(chunk)
+                if pending:
+                    tasks.append(Task(tuple(pending), pos, att, spec.segment, spec.metrics))
     return tasks, total
 
 
-def run_task(task: Task) -> list[dict[str, Any]]:
-    """Fly one batch and return one row per seed (a failure becomes rows with the error)."""
-    t0 = time.monotonic()
-    base = {"position": task.position, "attitude": task.attitude, **task.params}
-    try:
-        seeds = list(task.seeds) if len(task.seeds) > 1 else task.seeds[0]
-        log = simulate(task.scenario, task.position, task.attitude, seeds)
-        seg = next((s for s in task.scenario.segments if s.name == task.segment),
-                   Segment("flight", 0.0, task.scenario.duration_s + 1e-9))
-        rows = []
-        for i, seed in enumerate(task.seeds):
-            one = log.vehicle(i) if len(task.seeds) > 1 else log
-            m = segment_metrics(one, seg)
-            values = {k: getattr(m, k) for k in task.metrics}
+def _fly(scenario: Scenario, task: Task, members: Sequence[Member]) -> list[dict[str, Any]]:
+    seeds = [s for m in members for s in m.seeds]
+    log = simulate(scenario, task.position, task.attitude, seeds if len(seeds) > 1 else seeds[0])
+    seg = next((s for s in scenario.segments if s.name == task.segment),
+               Segment("flight", 0.0, scenario.duration_s + 1e-9))
+    rows = []
+    i = 0
+    for m in members:
+        for seed in m.seeds:
+            one = log.vehicle(i) if len(seeds) > 1 else log
+            i += 1
+            metrics = segment_metrics(one, seg)
+            values = {k: getattr(metrics, k) for k in task.metrics}
             finite = all(math.isfinite(v) for k, v in values.items() if k != "settling_time_s")
-            status = "ok" if finite and m.peak_error_m < 100.0 else "diverged"
-            rows.append({"case": case_id(task.params, task.position, task.attitude, seed), **base, "seed": seed,
-                         "status": status, "error": "" if status == "ok" else "non-finite or > 100 m error",
-                         **values})
+            status = "ok" if finite and metrics.peak_error_m < 100.0 else "diverged"
+            rows.append({"case": case_id(m.params, task.position, task.attitude, seed), "position": task.position,
+                         "attitude": task.attitude, **m.params, "seed": seed, "status": status,
+                         "error": "" if status == "ok" else "non-finite or > 100 m error", **values})
+    return rows
+
+
+def _failed(task: Task, m: Member, exc: Exception) -> list[dict[str, Any]]:
+    return [{"case": case_id(m.params, task.position, task.attitude, s), "position": task.position,
+             "attitude": task.attitude, **m.params, "seed": s, "status": "failed",
+             "error": f"{type(exc).__name__}: {exc}"[:300], **{k: math.nan for k in task.metrics}}
+            for s in m.seeds]
+
+
+def _fly_member(task: Task, m: Member) -> list[dict[str, Any]]:
+    try:
+        return _fly(m.scenario, task, [m])
     except Exception as exc:  # recorded per case, never dropped
-        rows = [{"case": case_id(task.params, task.position, task.attitude, s), **base, "seed": s,
-                 "status": "failed", "error": f"{type(exc).__name__}: {exc}"[:300],
-                 **{k: math.nan for k in task.metrics}} for s in task.seeds]
-    wall = (time.monotonic() - t0) / max(len(task.seeds), 1)
+        return _failed(task, m, exc)
+
+
+def fly_batch(task: Task) -> list[dict[str, Any]]:
+    """All members of ``task`` as one batch of vehicles (gains stacked); raises if the batch fails."""
+    return _fly(stack_gains(task.members), task, task.members)
+
+
+def run_task(task: Task) -> list[dict[str, Any]]:
+    """Fly one batch and return one row per case (a failure becomes rows with the error).
+
+    Members with different gains fly as one batch with per-vehicle gain arrays; should that batch
+    fail, each member flies alone, so an error is attributed to the cases that cause it.
+    """
+    t0 = time.monotonic()
+    try:
+        rows = fly_batch(task)
+    except Exception as exc:
+        if len(task.members) == 1:
+            rows = _failed(task, task.members[0], exc)
+        else:
+            rows = [r for m in task.members for r in _fly_member(task, m)]
+    wall = (time.monotonic() - t0) / max(len(rows), 1)
     for r in rows:
         r["wall_s"] = round(wall, 4)
     return rows

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from .attitude import _integrate_with_reset
 from .observers import ForceObserver
 from .params import PositionGains
@@ -41,6 +43,7 @@ from .vector import (
 __all__ = [
     "POSITION_CONTROLLERS",
     "aibc_coefficients",
+    "aibc_coefficients_per_vehicle",
     "nominal_force",
     "PositionController",
 ]
@@ -71,6 +74,15 @@ def aibc_coefficients(omega_c_rad_s: float) -> tuple[float, float, float]:
             hi = mid
     c2 = 0.5 * (lo + hi)
     return 2.0 * w - c2, c2, w / (4.0 * c2)
+
+
+def aibc_coefficients_per_vehicle(omega_c_rad_s: Real) -> tuple[Real, Real, Real]:
+    """:func:`aibc_coefficients` for one vehicle (a float) or a batch (an array, element by element)."""
+    if isinstance(omega_c_rad_s, np.ndarray):
+        coeffs = [aibc_coefficients(float(w)) for w in omega_c_rad_s.ravel()]
+        c1, c2, lam = (np.array([c[i] for c in coeffs]).reshape(omega_c_rad_s.shape) for i in range(3))
+        return c1, c2, lam
+    return aibc_coefficients(omega_c_rad_s)
 
 
 def nominal_force(
@@ -114,7 +126,7 @@ class PositionController:
         self._k_v, self._k_p, self._k_i = g.k_v(), g.k_p(), g.k_i()
         self.observer = ForceObserver(self.mass_kg, g.observer_gain_rad_s)
         if self.kind == "aibc":
-            coeffs = [aibc_coefficients(float(w)) for w in g.omega_c_rad_s]
+            coeffs = [aibc_coefficients_per_vehicle(w) for w in g.omega_c_rad_s]
             c1 = tuple(c[0] for c in coeffs)
             c2 = tuple(c[1] for c in coeffs)
             lam = tuple(c[2] for c in coeffs)

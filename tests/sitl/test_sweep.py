@@ -6,7 +6,7 @@ import math
 import pytest
 
 from companion.config import ConfigError
-from sitl.sweep import load_sweep, plan, run_sweep
+from sitl.sweep import fly_batch, load_sweep, plan, run_sweep
 
 SMALL = """name = "small"
 scenario = "E3_wind"
@@ -97,3 +97,42 @@ def test_a_dask_cluster_of_two_workers_gives_the_local_numbers(tmp_path):
     for k in local:
         for m in ("rms_horizontal_error_m", "peak_error_m"):
             assert remote[k][m] == local[k][m], (k, m)
+
+
+GAINS = """name = "gains"
+scenario = "E3_wind"
+duration_s = 1.5
+window_s = [0.5, 1.5]
+position = ["pid", "aibc", "pd_do", "ism_do"]
+attitude = ["pd", "pd_do", "ism_do"]
+seeds = { first = 5, count = 2 }
+metrics = ["rms_horizontal_error_m", "rms_vertical_error_m", "rms_rate_cmd_deg_s"]
+batch_size = 8
+
+[grid]
+"attitude.omega_c_rad_s" = [10.0, 14.0]
+"position.omega_c_rad_s" = [1.5, 2.2]
+"""
+
+
+def test_cases_that_differ_in_gains_fly_as_one_batch_with_the_numbers_of_separate_runs(tmp_path):
+    """With batch_size 8 the four gain sets x two seeds of each controller pair are one batch
+    whose gains are per-vehicle arrays; with batch_size 2 every gain set flies alone with float
+    gains. Every control law must give the same flight either way (float64 rounding only)."""
+    spec = load_sweep(write(tmp_path, GAINS))
+    tasks, total = plan(spec)
+    assert total == 4 * 3 * 4 * 2 and len(tasks) == 12 and all(len(t.members) == 4 for t in tasks)
+    together = {r["case"]: r for t in tasks for r in fly_batch(t)}  # the stacked path, no fall-back
+    alone_spec = load_sweep(write(tmp_path, GAINS.replace("batch_size = 8", "batch_size = 2"), "b.toml"))
+    assert all(len(t.members) == 1 for t in plan(alone_spec)[0])
+    alone = {r["case"]: r for r in rows(run_sweep(alone_spec, tmp_path / "b", jobs=2, progress=False, plots=False))}
+    assert together.keys() == alone.keys() and len(alone) == total
+    for k, r in alone.items():
+        assert r["status"] == together[k]["status"] == "ok", r
+        for m in spec.metrics:
+            assert together[k][m] == pytest.approx(float(r[m]), rel=1e-9, abs=1e-12), (r["position"],
+                                                                                               r["attitude"], m)
+    # the gains matter: the two position bandwidths give different errors
+    a = [float(r["rms_horizontal_error_m"]) for r in alone.values() if r["position.omega_c_rad_s"] == "1.5"]
+    b = [float(r["rms_horizontal_error_m"]) for r in alone.values() if r["position.omega_c_rad_s"] == "2.2"]
+    assert a != b
