@@ -389,8 +389,16 @@ def _fly_member(task: Task, m: Member) -> list[dict[str, Any]]:
         return _failed(task, m, exc)
 
 
+FLOAT_BELOW = 12
+"""fewer vehicles than this fly one by one on floats: faster than a small array batch
+(docs/sweeps.md, Throughput), and the numbers are the same"""
+
+
 def fly_batch(task: Task) -> list[dict[str, Any]]:
     """All members of ``task`` as one batch of vehicles (gains stacked); raises if the batch fails."""
+    if len(task.seeds) < FLOAT_BELOW:
+        return [r for m in task.members for s in m.seeds
+                for r in _fly(m.scenario, task, [Member(m.params, m.scenario, (s,))])]
     return _fly(stack_gains(task.members), task, task.members)
 
 

@@ -105,9 +105,9 @@ duration_s = 1.5
 window_s = [0.5, 1.5]
 position = ["pid", "aibc", "pd_do", "ism_do"]
 attitude = ["pd", "pd_do", "ism_do"]
-seeds = { first = 5, count = 2 }
+seeds = { first = 5, count = 3 }
 metrics = ["rms_horizontal_error_m", "rms_vertical_error_m", "rms_rate_cmd_deg_s"]
-batch_size = 8
+batch_size = 12
 
 [grid]
 "attitude.omega_c_rad_s" = [10.0, 14.0]
@@ -116,14 +116,14 @@ batch_size = 8
 
 
 def test_cases_that_differ_in_gains_fly_as_one_batch_with_the_numbers_of_separate_runs(tmp_path):
-    """With batch_size 8 the four gain sets x two seeds of each controller pair are one batch
-    whose gains are per-vehicle arrays; with batch_size 2 every gain set flies alone with float
-    gains. Every control law must give the same flight either way (float64 rounding only)."""
+    """With batch_size 12 the four gain sets x three seeds of each controller pair are one batch
+    whose gains are per-vehicle arrays; with batch_size 3 every gain set flies alone (each seed on
+    floats, since 3 < FLOAT_BELOW). Every control law must give the same flight either way (float64 rounding only)."""
     spec = load_sweep(write(tmp_path, GAINS))
     tasks, total = plan(spec)
-    assert total == 4 * 3 * 4 * 2 and len(tasks) == 12 and all(len(t.members) == 4 for t in tasks)
+    assert total == 4 * 3 * 4 * 3 and len(tasks) == 12 and all(len(t.members) == 4 for t in tasks)
     together = {r["case"]: r for t in tasks for r in fly_batch(t)}  # the stacked path, no fall-back
-    alone_spec = load_sweep(write(tmp_path, GAINS.replace("batch_size = 8", "batch_size = 2"), "b.toml"))
+    alone_spec = load_sweep(write(tmp_path, GAINS.replace("batch_size = 12", "batch_size = 3"), "b.toml"))
     assert all(len(t.members) == 1 for t in plan(alone_spec)[0])
     alone = {r["case"]: r for r in rows(run_sweep(alone_spec, tmp_path / "b", jobs=2, progress=False, plots=False))}
     assert together.keys() == alone.keys() and len(alone) == total
