@@ -76,6 +76,48 @@ def sitl():
             p.proc.wait()
 
 
+class RelayProcess:
+    """``python -m sitl.relay`` between a client and a vehicle; :meth:`stop` returns its counters."""
+
+    def __init__(self, to: str, *args: str) -> None:
+        cmd = [sys.executable, "-m", "sitl.relay", "--listen", "127.0.0.1:0", "--to", to, *args]
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     env=dict(os.environ, PYTHONUNBUFFERED="1"))
+        line = self.proc.stdout.readline()  # type: ignore[union-attr]
+        if "listening on" not in line:
+            raise RuntimeError(f"relay did not start: {line}{self.proc.communicate(timeout=5)[0]}")
+        self.url = line.split("listening on ")[1].split(",")[0]
+        self.report: dict | None = None
+
+    def outage_now(self) -> None:
+        self.proc.send_signal(signal.SIGUSR1)
+
+    def stop(self) -> dict:
+        if self.report is None:
+            if self.proc.poll() is None:
+                self.proc.send_signal(signal.SIGTERM)
+            out = self.proc.communicate(timeout=10)[0]
+            line = next(ln for ln in out.splitlines() if ln.startswith("relay: stopped "))
+            self.report = json.loads(line[len("relay: stopped "):])
+        return self.report
+
+
+@pytest.fixture
+def relay():
+    procs: list[RelayProcess] = []
+
+    def start(to: str, *args: str) -> RelayProcess:
+        p = RelayProcess(to, *args)
+        procs.append(p)
+        return p
+
+    yield start
+    for p in procs:
+        if p.proc.poll() is None:
+            p.proc.kill()
+            p.proc.wait()
+
+
 class Client:
     """A pymavlink ground station on a fresh UDP socket, talking to one vehicle."""
 

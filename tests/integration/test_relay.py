@@ -1,0 +1,141 @@
+"""The impairment relay as its own process on real UDP sockets: each impairment does what it says."""
+
+import socket
+import statistics
+import struct
+import threading
+import time
+
+import pytest
+
+from sitl.relay import Impairment, main
+
+
+class Ends:
+    """A 'client' socket and a 'vehicle' socket; the relay process sits between them."""
+
+    def __init__(self, relay_fixture, *args: str) -> None:
+        self.vehicle = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.vehicle.bind(("127.0.0.1", 0))
+        self.vehicle.settimeout(0.5)
+        host, port = self.vehicle.getsockname()
+        self.relay = relay_fixture(f"{host}:{port}", *args)
+        h, _, p = self.relay.url.rpartition(":")
+        self.relay_addr = (h, int(p))
+        self.client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.client.bind(("127.0.0.1", 0))
+        self.client.settimeout(0.5)
+
+    def send_up(self, n: int, spacing_s: float = 0.0005) -> list[tuple[int, float]]:
+        """n numbered, time-stamped datagrams client -> vehicle; (number, delay ms) as received.
+        A thread receives while they are sent: the arrival time is the delay, and a socket
+        buffer left unread would overflow."""
+        got: list[tuple[int, float]] = []
+        rx = threading.Thread(target=self.receive, args=(got,))
+        rx.start()
+        for i in range(n):
+            self.client.sendto(struct.pack("<Id", i, time.monotonic()), self.relay_addr)
+            if spacing_s:
+                time.sleep(spacing_s)
+        rx.join()
+        return got
+
+    def receive(self, got: list[tuple[int, float]]) -> list[tuple[int, float]]:
+        while True:
+            try:
+                data, self.relay_vehicle_side = self.vehicle.recvfrom(100)
+            except TimeoutError:
+                return got
+            i, sent = struct.unpack("<Id", data)
+            got.append((i, (time.monotonic() - sent) * 1000))
+
+    def close(self) -> None:
+        self.client.close()
+        self.vehicle.close()
+
+
+@pytest.fixture
+def ends(relay):
+    made = []
+
+    def make(*args: str) -> Ends:
+        e = Ends(relay, *args)
+        made.append(e)
+        return e
+
+    yield make
+    for e in made:
+        e.close()
+
+
+def test_loss_rate_is_the_requested_one_and_the_same_seed_loses_the_same_datagrams(ends):
+    """2000 datagrams at p = 0.1: the count lost is binomial, sd = sqrt(2000 * 0.1 * 0.9) = 13.4;
+    accept +-4 sd (146..254). The same seed drops the same datagrams; another seed does not."""
+    a = ends("--up", "loss=0.1", "--seed", "7")
+    got_a = {i for i, _ in a.send_up(2000)}
+    assert 146 <= 2000 - len(got_a) <= 254
+    assert a.relay.stop()["up"]["lost"] == 2000 - len(got_a)
+    b = ends("--up", "loss=0.1", "--seed", "7")
+    assert {i for i, _ in b.send_up(2000)} == got_a
+    c = ends("--up", "loss=0.1", "--seed", "8")
+    assert {i for i, _ in c.send_up(2000)} != got_a
+
+
+def test_delay_and_jitter_and_the_reordering_jitter_causes(ends):
+    """20 +- 10 ms uniform: no delay below 10 ms; above 30 ms only by the two processes' scheduling
+    latency (allow 10 ms on a shared machine); mean within 3 ms of 20 ms. Datagrams 0.5 ms apart
+    with a 20 ms jitter spread must overtake each other."""
+    e = ends("--delay-ms", "20", "--jitter-ms", "10", "--seed", "1")
+    got = e.send_up(400)
+    assert len(got) == 400
+    delays = [d for _, d in got]
+    assert min(delays) >= 10.0 - 0.2 and max(delays) < 30.0 + 10.0
+    assert abs(statistics.mean(delays) - 20.0) < 3.0
+    order = [i for i, _ in got]
+    assert order != sorted(order)
+
+
+def test_duplicates_and_explicit_reordering(ends):
+    """p = 0.2 each over 1000 datagrams: binomial mean 200, sd 12.6; accept +-6 sd. Nothing lost."""
+    e = ends("--duplicate", "0.2", "--reorder", "0.2", "--reorder-ms", "5", "--seed", "3")
+    seqs = [i for i, _ in e.send_up(1000)]
+    report = e.relay.stop()
+    dups = len(seqs) - len(set(seqs))
+    assert dups == report["up"]["duplicated"] and 124 <= dups <= 276
+    assert 124 <= report["up"]["reordered"] <= 276
+    assert sum(1 for k in range(1, len(seqs)) if seqs[k] < seqs[k - 1]) > 50
+    assert set(seqs) == set(range(1000))
+
+
+def test_an_outage_drops_one_direction_only_for_its_length(ends):
+    """Uplink outage from 0.3 s to 0.6 s after the first datagram, datagrams every 10 ms: those sent
+    inside it are gone (20 ms margin at each edge), those outside arrive; the downlink works
+    throughout."""
+    e = ends("--outage", "0.3:0.3:up")
+    sent_at = {}
+    received: list[tuple[int, float]] = []
+    rx = threading.Thread(target=e.receive, args=(received,))
+    rx.start()
+    t0 = time.monotonic()
+    for i in range(90):
+        sent_at[i] = time.monotonic() - t0
+        e.client.sendto(struct.pack("<Id", i, time.monotonic()), e.relay_addr)
+        time.sleep(0.01)
+    rx.join()
+    got = {i for i, _ in received}
+    inside = {i for i, t in sent_at.items() if 0.32 < t < 0.58}
+    outside = {i for i, t in sent_at.items() if t < 0.28 or t > 0.62}
+    assert len(inside) > 15 and not (inside & got)
+    assert outside <= got
+    e.vehicle.sendto(b"down", e.relay_vehicle_side)
+    assert e.client.recvfrom(100)[0] == b"down"
+    assert e.relay.stop()["up"]["outage"] == len(set(range(90)) - got)
+
+
+def test_bad_options_are_refused_with_a_clear_message(capsys):
+    with pytest.raises(ValueError, match="loss must be a probability"):
+        Impairment(loss=1.5)
+    assert main(["--listen", "127.0.0.1:0", "--loss", "2"]) == 2
+    assert "loss must be a probability" in capsys.readouterr().err
+    with pytest.raises(SystemExit, match="expected KEY=VALUE"):
+        main(["--listen", "127.0.0.1:0", "--up", "lossy=0.1"])
