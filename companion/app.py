@@ -22,6 +22,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Awaitable
 
 from companion.control.params import PositionGains
 
@@ -112,6 +113,12 @@ class Flight:
         """the controller computes setpoints (streaming before and during offboard)"""
         self.expect_offboard = False
         self.stale = False
+        self.outages = 0
+        """episodes of stale telemetry"""
+        self.stale_for_s = 0.0
+        self.longest_outage_s = 0.0
+        self.stale_until_wall = -math.inf
+        self._background: set[asyncio.Task[None]] = set()
         self.finished = asyncio.Event()
         self.interrupted = asyncio.Event()
         self._new_setpoint = asyncio.Event()
@@ -179,13 +186,31 @@ class Flight:
             stale = age > safety.telemetry_timeout_s and silent_wall > max(
                 safety.telemetry_timeout_s / max(self.link.clock.rate, 1e-3), MIN_SILENCE_S)
             if stale and not self.stale:
-                self.stale = True
-                self.log(f"telemetry stale ({age:.2f} s): setpoints stopped, holding")
-                if not hold_requested:
+                self.outages += 1
+                self.log(f"telemetry stale ({age:.2f} s): setpoints paused")
+            elif self.stale and not stale:
+                self.stale_until_wall = now
+                self.log(f"telemetry back after {self.stale_for_s:.2f} s")
+            if stale:
+                self.stale_for_s = age
+                self.longest_outage_s = max(self.longest_outage_s, age)
+                if age > safety.stale_hold_s and not hold_requested:
                     hold_requested = True
-                    with contextlib.suppress(LinkError):  # best effort: the link may be what failed
-                        await self.link.hold()
+                    self.log(f"telemetry stale for {age:.2f} s: commanding hold")
+                    # in the background: the command retries while the link is down
+                    task = asyncio.get_running_loop().create_task(self._best_effort(self.link.hold()))
+                    self._background.add(task)
+                    task.add_done_callback(self._background.discard)
             self.stale = stale
+
+    async def _best_effort(self, command: Awaitable[None]) -> None:
+        with contextlib.suppress(LinkError):
+            await command
+
+    def _outage_recent(self, within_s: float = 2.0) -> bool:
+        """True while telemetry is stale and for ``within_s`` wall seconds after it came back: a mode
+        change seen then is the autopilot's reaction to the outage, not a pilot's decision."""
+        return self.stale or time.monotonic() - self.stale_until_wall < within_s
 
     async def _control_loop(self) -> None:
         clock, state = self.link.clock, self.link.state
@@ -248,7 +273,8 @@ class Flight:
             if self.interrupted.is_set():
                 raise _Interrupted()
             if self.expect_offboard and not self.link.state.offboard:
-                raise MissionAbort(f"the autopilot left offboard (mode {self.link.state.mode})")
+                during = f" after a {self.stale_for_s:.1f} s telemetry outage" if self._outage_recent() else ""
+                raise MissionAbort(f"the autopilot left offboard (mode {self.link.state.mode}){during}")
             if cond():
                 return
             if clock.now(time.monotonic()) - start > timeout_v:
@@ -284,7 +310,10 @@ class Flight:
             self.log(f"aborted: {exc}")
             self.failure = str(exc)
             if link.state.sysid and time.monotonic() - link.state.wall_last < m.safety.link_lost_s:
-                await self._recover(leave_to_autopilot=not link.state.offboard and self.expect_offboard)
+                # a pilot who took over keeps control; after an outage the companion lands the vehicle
+                # itself (the autopilot's failsafe would too, later)
+                pilot = not link.state.offboard and self.expect_offboard and not self._outage_recent()
+                await self._recover(leave_to_autopilot=pilot)
             return "aborted", str(exc)
         finally:
             self.engaged = False
@@ -295,12 +324,15 @@ class Flight:
         (a failsafe, or a pilot), it is in charge: stop without fighting it."""
         self.engaged = False
         self.expect_offboard = False
+        for task in list(self._background):  # e.g. a hold still being retried after an outage
+            task.cancel()
         link = self.link
         if not link.state.armed:
             return
         if leave_to_autopilot:
             self.log(f"the autopilot (mode {link.state.mode}) has control: the companion stops here")
             return
+        self.log("holding, then landing")
         with contextlib.suppress(LinkError):
             await link.hold()
             await asyncio.sleep(0.5 / max(link.clock.rate, 1e-3))
@@ -439,6 +471,7 @@ class Flight:
             "controller": self.controller_name, "rate_hz": self.rate_hz, "backend": self.opt.backend,
             "autopilot": self.link.state.autopilot, "setpoints_sent": self.sent,
             "setpoints_rejected": self.rejected, "late_ticks": self.late_ticks,
+            "telemetry_outages": self.outages, "longest_outage_s": self.longest_outage_s,
             "thrust_max_n": thrust.thrust_max_n if thrust else None,
             "thrust_max_est_n": thrust.estimated_thrust_max_n if thrust else None,
             "vehicle_clock_rate": self.link.clock.rate, "setpoint_timing": jitter,

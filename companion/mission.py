@@ -117,8 +117,11 @@ class ThrustConfig:
 @dataclass(frozen=True)
 class SafetyConfig:
     telemetry_timeout_s: float = 0.3
-    """vehicle-clock age of position/attitude beyond which setpoints stop and the vehicle is told to
-    hold (at a speed-up, the streams must also have been silent for at least 0.15 s of wall time)"""
+    """vehicle-clock age of position/attitude beyond which setpoints stop (at a speed-up, the streams
+    must also have been silent for at least 0.15 s of wall time); they resume when it is fresh again"""
+    stale_hold_s: float = 1.0
+    """vehicle seconds of stale telemetry after which the companion also commands hold (PX4's
+    COM_OF_LOSS_T default); a shorter outage only pauses the setpoints and the flight goes on"""
     link_lost_s: float = 3.0
     """wall seconds without any telemetry after which the companion gives up and exits with an error"""
     max_tilt_deg: float = 60.0

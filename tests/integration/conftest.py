@@ -237,6 +237,9 @@ class CompanionProcess:
         return self.proc.returncode, "".join(self.lines)
 
     def flight_dir(self) -> Path:
+        for line in reversed("".join(self.lines).splitlines()):  # "companion: <result>: ... -> FOLDER"
+            if line.startswith("companion: ") and " -> " in line:
+                return Path(line.rsplit(" -> ", 1)[1].strip())
         dirs = sorted(p for p in self.out_dir.iterdir() if p.is_dir())
         assert dirs, "no flight folder written"
         return dirs[-1]
