@@ -27,6 +27,7 @@ from typing import Awaitable
 from companion.control.params import PositionGains
 
 from .link import LinkError, VehicleLink, open_link
+from .link.signing import fingerprint
 from .mission import Mission, Step
 from .offboard import OffboardController, Setpoint
 from .recorder import FlightRecorder
@@ -61,6 +62,8 @@ class FlightOptions:
     connect_timeout_s: float = 20.0
     thrust_max_n: float | None = None
     quiet: bool = False
+    signing_key: bytes | None = field(default=None, repr=False)
+    """MAVLink 2 signing key (pymavlink backend): sign what we send, believe only signed frames"""
 
 
 @dataclass
@@ -105,7 +108,8 @@ class Flight:
             n += 1
             self.folder = opt.out_dir / f"{stamp}_{mission.name}_{self.controller_name}_{n}"
         self.recorder = FlightRecorder(self.folder)
-        self.link: VehicleLink = open_link(opt.connect, opt.backend, traffic=self.recorder.traffic)
+        link_options = {} if opt.signing_key is None else {"signing_key": opt.signing_key}
+        self.link: VehicleLink = open_link(opt.connect, opt.backend, traffic=self.recorder.traffic, **link_options)
         safety = mission.safety
         self.guard = SetpointGuard(math.radians(safety.max_tilt_deg), math.radians(safety.max_rate_deg_s))
         self.control: OffboardController | None = None
@@ -133,7 +137,9 @@ class Flight:
 
     def log(self, text: str) -> None:
         if not self.opt.quiet:
-            print(f"[{self.link.state.t:8.2f}] {text}", flush=True)
+            t = self.link.state.t
+            stamp = f"{t:8.2f}" if math.isfinite(t) else "      --"  # vehicle time, once it is known
+            print(f"[{stamp}] {text}", flush=True)
 
     def interrupt(self) -> None:
         """SIGINT: the runner holds, lands and disarms; a second one gives up waiting."""
@@ -477,5 +483,7 @@ class Flight:
             "vehicle_clock_rate": self.link.clock.rate, "setpoint_timing": jitter,
             "cpu_s": time.process_time() - self._cpu0, "wall_s": time.monotonic() - self._wall0,
             "link_stats": dict(getattr(self.link, "stats", {})),
+            "signing": fingerprint(self.opt.signing_key) if self.opt.signing_key else "off",
+            "signing_rejections": dict(getattr(self.link, "signing_rejections", {})),
         }
 

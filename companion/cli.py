@@ -5,6 +5,11 @@
     companion plot flights/20261122-120000_hover45_ism_do
     companion check missions/*.toml
     companion demo                     # start the bundled vehicle, fly hover45 and waypoints
+    companion keygen ~/.config/mavlink.key   # a new signing key (file mode 600)
+    companion fly missions/hover45.toml --signing-key-file ~/.config/mavlink.key
+
+MAVLink 2 signing is on when a key is given, from ``--signing-key-file FILE`` or the environment
+variable MAVLINK_SIGNING_KEY (64 hex digits or a passphrase); never on the command line itself.
 
 Exit codes: 0 completed, 1 aborted (refused command, offboard left, timeout), 2 bad mission file
 or arguments, 3 vehicle link lost, 130 interrupted (after holding, landing and disarming).
@@ -20,6 +25,8 @@ from pathlib import Path
 from typing import Sequence
 
 from companion.config import ConfigError
+from companion.link.signing import SigningError, fingerprint, write_key_file
+from companion.link.signing_options import add_signing_options, signing_key
 
 __all__ = ["main"]
 
@@ -33,8 +40,18 @@ def _fly(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         print(f"companion: error: {exc}", file=sys.stderr)
         return 2
+    try:
+        key = signing_key(args, "companion")
+    except SigningError as exc:
+        print(f"companion: error: {exc}", file=sys.stderr)
+        return 2
+    if key is not None and args.backend == "mavsdk":
+        print("companion: error: MAVLink signing needs --backend pymavlink (MAVSDK 4.1's Python API takes no "
+              "signing key)", file=sys.stderr)
+        return 2
     opts = FlightOptions(connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
-                         out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet)
+                         out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet, signing_key=key,
+                         connect_timeout_s=args.connect_timeout)
     return asyncio.run(_run_flight(Flight(mission, opts), plots=not args.no_plots))
 
 
@@ -86,6 +103,19 @@ def _demo(args: argparse.Namespace) -> int:
     return run_demo(out_dir=Path(args.out), speedup=args.speedup, controller=args.controller)
 
 
+def _keygen(args: argparse.Namespace) -> int:
+    try:
+        key = write_key_file(args.file)
+    except FileExistsError:
+        print(f"companion: error: {args.file} exists; a key is never overwritten", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"companion: error: cannot write {args.file}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    print(f"{args.file}: new MAVLink 2 signing key (mode 600), fingerprint {fingerprint(key)}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="companion", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -99,8 +129,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     fly.add_argument("--backend", choices=("pymavlink", "mavsdk"), default="pymavlink")
     fly.add_argument("--thrust-max", type=float, help="thrust at full throttle [N] (default: ask the vehicle)")
     fly.add_argument("--out", default="flights", help="folder for flight records")
+    fly.add_argument("--connect-timeout", type=float, default=20.0, metavar="S",
+                     help="give up if no autopilot heartbeat and telemetry within S seconds (default 20)")
     fly.add_argument("--no-plots", action="store_true")
     fly.add_argument("--quiet", action="store_true")
+    add_signing_options(fly)
     fly.set_defaults(func=_fly)
     plot = sub.add_parser("plot", help="re-draw a flight's plots")
     plot.add_argument("flight")
@@ -113,6 +146,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     demo.add_argument("--speedup", type=float, default=4.0)
     demo.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc"), default="ism_do")
     demo.set_defaults(func=_demo)
+    keygen = sub.add_parser("keygen", help="write a new random MAVLink 2 signing key to a file (mode 600)")
+    keygen.add_argument("file")
+    keygen.set_defaults(func=_keygen)
     args = ap.parse_args(argv)
     if getattr(args, "rate", None) is not None and not 10.0 <= args.rate <= 250.0:
         ap.error("--rate must be within 10..250 Hz")

@@ -14,10 +14,24 @@ from dataclasses import dataclass, field
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 
-__all__ = ["VehicleState", "LANDED_ON_GROUND", "LANDED_IN_AIR"]
+__all__ = ["VehicleState", "LANDED_ON_GROUND", "LANDED_IN_AIR", "MAX_POSITION_M", "MAX_SPEED_M_S",
+           "MAX_RATE_RAD_S", "MAX_SPECIFIC_FORCE_M_S2"]
 
 LANDED_ON_GROUND = 1
 LANDED_IN_AIR = 2
+
+# telemetry beyond these is not a multicopter's, it is a fault: refused, never fed to the controller
+MAX_POSITION_M = 1e5
+MAX_SPEED_M_S = 150.0
+MAX_RATE_RAD_S = 50.0
+"""2900 deg/s"""
+MAX_SPECIFIC_FORCE_M_S2 = 1000.0
+"""100 g; IMUs saturate long before"""
+QUAT_NORM_TOLERANCE = 0.01
+
+
+def _within(values: tuple[float, ...], limit: float) -> bool:
+    return all(math.isfinite(v) and abs(v) <= limit for v in values)
 
 
 @dataclass
@@ -54,6 +68,43 @@ class VehicleState:
     """arrival of the newest message of any kind from the vehicle"""
     statustexts: deque[tuple[int, str]] = field(default_factory=lambda: deque(maxlen=100))
     params: dict[str, float] = field(default_factory=dict)
+
+    # --- updates: each refuses (returns False, changes nothing) what cannot be a real sample ---
+
+    def set_attitude(self, q: Quat, omega_rad_s: Vec3 | None, t: float, wall: float) -> bool:
+        """Attitude (renormalised) and, if given, body rates, sampled at vehicle time ``t``."""
+        if not (_within(q, 1.5) and math.isfinite(t) and t >= 0.0):
+            return False
+        n = math.sqrt(sum(c * c for c in q))
+        if abs(n - 1.0) > QUAT_NORM_TOLERANCE:
+            return False
+        if omega_rad_s is not None:
+            if not _within(omega_rad_s, MAX_RATE_RAD_S):
+                return False
+            self.omega_rad_s = omega_rad_s
+        self.q = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+        self.t_att, self.wall_att = t, wall
+        return True
+
+    def set_rates(self, omega_rad_s: Vec3) -> bool:
+        if not _within(omega_rad_s, MAX_RATE_RAD_S):
+            return False
+        self.omega_rad_s = omega_rad_s
+        return True
+
+    def set_position(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, t: float, wall: float) -> bool:
+        if not (_within(pos_ned_m, MAX_POSITION_M) and _within(vel_ned_m_s, MAX_SPEED_M_S) and not math.isnan(t)):
+            return False
+        self.pos_ned_m, self.vel_ned_m_s = pos_ned_m, vel_ned_m_s
+        self.t_pos, self.wall_pos = t, wall
+        return True
+
+    def set_imu(self, specific_force_body_m_s2: Vec3, t: float, wall: float) -> bool:
+        if not (_within(specific_force_body_m_s2, MAX_SPECIFIC_FORCE_M_S2) and math.isfinite(t) and t >= 0.0):
+            return False
+        self.specific_force_body_m_s2 = specific_force_body_m_s2
+        self.t_imu, self.wall_imu = t, wall
+        return True
 
     @property
     def t(self) -> float:

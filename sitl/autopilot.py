@@ -197,8 +197,11 @@ class Autopilot:
         self.rejected: dict[str, int] = {}
         """counts of rejected inputs by reason (setpoints, commands), for tests and reports"""
 
-        self.setpoint_times: deque[float] = deque(maxlen=64)
+        self.setpoint_times: deque[tuple[float, int]] = deque(maxlen=64)
+        """(time, sender) of recent accepted setpoints"""
         self.last_setpoint_time = -math.inf
+        self.setpoint_sender: int | None = None
+        """the system whose setpoint is stored (before offboard anyone may stream one)"""
         self.offboard_owner: int | None = None
         self.offboard_attitude: AttitudeSetpoint | None = None
         self.offboard_uses_attitude = True
@@ -341,9 +344,14 @@ class Autopilot:
         if mode == Mode.GUIDED and not self.ardupilot or mode == Mode.OFFBOARD and self.ardupilot:
             return self._deny(f"{mode.name} denied: not a mode of this autopilot")
         if mode == Mode.OFFBOARD:
-            if not self.setpoint_stream_active():
+            if not self.setpoint_stream_active(sender):
                 return self._deny("Offboard denied: no setpoint stream (>2 Hz)")
             self.offboard_owner = sender
+            if self.setpoint_sender != sender:  # the newest setpoint is another system's: not the owner's
+                self.offboard_attitude = AttitudeSetpoint(self.vehicle.estimator.q, (0.0, 0.0, 0.0),
+                                                          self.vehicle.hover_thrust_n)
+                self.offboard_uses_attitude, self.offboard_position = True, None
+                self.setpoint_sender = sender
         if mode == Mode.TAKEOFF and not self.ardupilot:
             return self._takeoff(math.nan)
         if mode in (Mode.RTL, Mode.LAND) and (not self.armed or self.landed):
@@ -392,11 +400,12 @@ class Autopilot:
 
     # --- offboard setpoints ------------------------------------------------------------
 
-    def setpoint_stream_active(self) -> bool:
+    def setpoint_stream_active(self, sender: int | None = None) -> bool:
+        """Setpoints arrive often enough (from ``sender``, if given) to fly offboard."""
         t = self.t
         if t - self.last_setpoint_time > self.params.offboard_loss_timeout_s:
             return False
-        recent = sum(1 for s in self.setpoint_times if t - s <= 1.0)
+        recent = sum(1 for s, who in self.setpoint_times if t - s <= 1.0 and sender in (None, who))
         return recent >= max(2, int(self.params.offboard_min_rate_hz))
 
     def attitude_target(
@@ -433,7 +442,7 @@ class Autopilot:
         if reason is not None:
             self._reject(reason)
             return reason
-        self._note_setpoint()
+        self._note_setpoint(sender)
         prev = self.offboard_attitude
         t_max = self.vehicle.scenario.vehicle.thrust_max_n
         thrust_n = thrust * t_max if use_thrust else (prev.thrust_n if prev else 0.0)
@@ -462,15 +471,16 @@ class Autopilot:
         if self.mode == Mode.OFFBOARD and self.offboard_owner not in (None, sender):
             self._reject("setpoint from a system without offboard control")
             return "setpoint from a system without offboard control"
-        self._note_setpoint()
+        self._note_setpoint(sender)
         if self.offboard_position is None and self.mode == Mode.OFFBOARD:
             self._restart_reference()
         self.offboard_position = (pos_ned_m, yaw_rad)
         return None
 
-    def _note_setpoint(self) -> None:
+    def _note_setpoint(self, sender: int) -> None:
         self.last_setpoint_time = self.t
-        self.setpoint_times.append(self.t)
+        self.setpoint_times.append((self.t, sender))
+        self.setpoint_sender = sender
 
     # --- stepping ----------------------------------------------------------------------
 

@@ -7,6 +7,10 @@
 Clients connect with ``udpout://127.0.0.1:14540`` (MAVSDK), ``udpout:127.0.0.1:14540``
 (pymavlink / MAVProxy ``--master``); with ``--peer`` the vehicle sends first, as PX4 does, to a
 client listening with ``udpin://0.0.0.0:PORT``.
+
+MAVLink 2 signing is on when a key is given, from ``--signing-key-file FILE`` or the environment
+variable MAVLINK_SIGNING_KEY (64 hex digits or a passphrase); never on the command line itself.
+Make a key with ``companion keygen FILE``.
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ import sys
 from typing import Sequence
 
 from companion.config import ConfigError
+from companion.link.signing import SigningError
+from companion.link.signing_options import add_signing_options, signing_key
 
 from .autopilot import Autopilot, AutopilotParams
 from .scenario import Scenario, load_scenario
@@ -62,7 +68,7 @@ def build(args: argparse.Namespace) -> MavlinkServer:
     ap = Autopilot(vehicle, AutopilotParams(strict_px4=args.flavour == "px4-strict",
                                             flavour="ardupilot" if args.flavour == "ardupilot" else "px4"))
     cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
-                       origin=args.origin)
+                       origin=args.origin, signing_key=signing_key(args, "sitl"))
     server = MavlinkServer(ap, cfg)
     for name, value in args.param:
         reason = server.params.set(name, value)
@@ -84,6 +90,7 @@ async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) ->
               flush=True)
     await server.run(stop, duration_s)
     report = {"t": round(server.ap.t, 3), "stats": dict(server.stats), "rejections": dict(server.rejections),
+              "signing_rejections": dict(server.signing_rejections),
               "mode": server.ap.mode.name, "armed": server.ap.armed, "loop_lateness_ms": server.lateness_ms()}
     print(f"sitl: stopped {json.dumps(report)}", flush=True)
 
@@ -107,13 +114,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--sysid", type=int, default=1)
     ap.add_argument("--origin", type=parse_origin, default=GeoOrigin(), help="LAT,LON,ALT of the local origin")
     ap.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
+    add_signing_options(ap)
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
     if not 0.05 <= args.speedup <= 1000:
         ap.error("--speedup must be within 0.05..1000")
     try:
         server = build(args)
-    except ConfigError as exc:
+    except (ConfigError, SigningError) as exc:
         print(f"sitl: error: {exc}", file=sys.stderr)
         return 2
     try:

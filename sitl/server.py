@@ -22,6 +22,7 @@ from typing import Any, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.link.signing import SIGNED_FLAG, SignatureCheck, enable_signing
 from companion.link.wire import new_parser, parse_datagram
 
 from .autopilot import Autopilot, MavResult, Severity
@@ -32,6 +33,9 @@ __all__ = ["ServerConfig", "MavlinkServer"]
 
 MAX_DATAGRAM = 4096
 MAX_PEERS = 16
+MAX_REASONS = 64
+"""distinct rejection reasons kept by name; the rest are counted as "other" (a fuzzer or an
+attacker must not grow the vehicle's memory with made-up parameter names or command ids)"""
 PEER_TIMEOUT_S = 30.0
 
 # commands answered by the server itself (the rest go to the autopilot)
@@ -54,6 +58,12 @@ class ServerConfig:
     rates_hz: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_RATES_HZ))
     max_lag_s: float = 0.2
     """wall-time lag beyond which the clock is re-based (the simulation then runs slower)"""
+    signing_key: bytes | None = None
+    """MAVLink 2 signing: sign everything sent, and act only on frames signed with this key"""
+
+
+UNSIGNED_ALLOWED = frozenset({"HEARTBEAT", "RADIO_STATUS"})
+"""with signing on, what may arrive unsigned (it changes nothing, and teaches no peer address)"""
 
 
 class _Protocol(asyncio.DatagramProtocol):
@@ -81,6 +91,13 @@ class MavlinkServer:
         self.params: ParamTable = build_parameters(ap)
         self.stats: Counter[str] = Counter()
         self.rejections: Counter[str] = Counter()
+        self.signing_rejections: Counter[str] = Counter()
+        """frames dropped by the signature check, by reason and message name"""
+        self.signature_check: SignatureCheck | None = None
+        if cfg.signing_key is not None:
+            enable_signing(self.mav, cfg.signing_key)
+            self.signature_check = SignatureCheck(cfg.signing_key, allow_unsigned=UNSIGNED_ALLOWED)
+        self._signing_reported: set[str] = set()
         self.peers: dict[tuple[str, int], float] = {p: math.inf for p in cfg.peers}
         self.transport: asyncio.DatagramTransport | None = None
         self.step_lateness_s: list[float] = []
@@ -126,6 +143,7 @@ class MavlinkServer:
 
     def _warn_once(self, key: str, text: str, every_s: float = 5.0) -> None:
         """A STATUSTEXT for a rejected input, at most once per ``every_s`` (simulated) per kind."""
+        key = _bounded_key(self._last_warning, key)
         t = self.ap.t
         if t - self._last_warning.get(key, -math.inf) >= every_s:
             self._last_warning[key] = t
@@ -174,10 +192,18 @@ class MavlinkServer:
         if parsed.truncated:
             st["truncated"] += 1
         good = False
+        check = self.signature_check
         for msg in parsed.messages:
             kind = msg.get_type()
-            good = True
             st["messages"] += 1
+            if check is not None:
+                reason = check.verdict(msg)
+                if reason is not None:
+                    self._drop_unauthentic(msg, kind, reason)
+                    continue
+                if not msg.get_header().incompat_flags & SIGNED_FLAG:
+                    continue  # allowed unsigned: no effect, and no telemetry for its sender
+            good = True
             handler = self._handlers.get(kind)
             if handler is None:
                 continue
@@ -188,6 +214,15 @@ class MavlinkServer:
         if good:
             self._note_peer(addr)
         self._drain_messages()
+
+    def _drop_unauthentic(self, msg: Any, kind: str, reason: str) -> None:
+        """Count a frame that failed the signature check; say so once per reason (not per frame:
+        a flood must not become a flood of STATUSTEXTs)."""
+        self.stats["signing_rejected"] += 1
+        self.signing_rejections[f"{reason} {kind}"] += 1
+        if reason not in self._signing_reported:
+            self._signing_reported.add(reason)
+            self.say(Severity.WARNING, f"Dropped {reason} {kind} from {msg.get_srcSystem()}")
 
     def _note_peer(self, addr: tuple[str, int]) -> None:
         now = time.monotonic()
@@ -212,7 +247,7 @@ class MavlinkServer:
 
     def _reject(self, reason: str) -> None:
         self.stats["rejected"] += 1
-        self.rejections[reason] += 1
+        self.rejections[_bounded_key(self.rejections, reason)] += 1
         self._warn_once(reason, f"Rejected: {reason}")
 
     # --- commands --------------------------------------------------------------------------
@@ -244,7 +279,7 @@ class MavlinkServer:
         else:
             result = self.ap.command(command, params, msg.get_srcSystem())
             if result.result != MavResult.ACCEPTED:
-                self.rejections[f"command {command}: {result.reason}"] += 1
+                self.rejections[_bounded_key(self.rejections, f"command {command}: {result.reason}")] += 1
             self._ack(msg, command, int(result.result))
 
     def _set_message_interval(self, msg_id: float, interval_us: float) -> int:
@@ -348,9 +383,10 @@ class MavlinkServer:
             self.send(self.mav.ping_encode(msg.time_usec, msg.seq, msg.get_srcSystem(), msg.get_srcComponent()))
 
     def _timesync(self, msg: Any) -> None:
+        """A request (tc1 = 0) is answered with our simulated time in tc1 and the request's ts1.
+        (This dialect's TIMESYNC has no target fields: the answer goes to every peer.)"""
         if msg.tc1 == 0:
-            self.send(self.mav.timesync_encode(int(self.ap.t * 1e9), msg.ts1, msg.get_srcSystem(),
-                                               msg.get_srcComponent()))
+            self.send(self.mav.timesync_encode(int(self.ap.t * 1e9), msg.ts1))
 
     def _request_data_stream(self, msg: Any) -> None:
         if not self._for_us(msg):
@@ -432,6 +468,10 @@ class MavlinkServer:
             if self.transport is not None:
                 self.transport.close()
                 self.transport = None
+
+
+def _bounded_key(table: dict[str, Any], key: str) -> str:
+    return key if key in table or len(table) < MAX_REASONS else "other"
 
 
 def _param_name(raw: object) -> str:

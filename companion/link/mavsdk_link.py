@@ -59,7 +59,9 @@ def _mavsdk_url(url: str) -> str:
 
 
 class MavsdkLink(VehicleLink):
-    def __init__(self, url: str, traffic: TrafficHook | None = None) -> None:
+    def __init__(self, url: str, traffic: TrafficHook | None = None, signing_key: bytes | None = None) -> None:
+        if signing_key is not None:
+            raise LinkError("MAVLink signing needs --backend pymavlink: MAVSDK 4.1's Python API takes no signing key")
         self.url = url
         self.traffic = traffic
         self.state = VehicleState()
@@ -138,6 +140,11 @@ class MavsdkLink(VehicleLink):
         except* _Stop:
             pass
 
+    def _valid(self, accepted: bool) -> bool:
+        if not accepted:
+            self.stats["invalid_telemetry"] += 1  # NaN, inf or impossible: the sample is ignored
+        return accepted
+
     def _seen(self) -> float:
         now = time.monotonic()
         self.state.wall_last = now
@@ -147,32 +154,29 @@ class MavsdkLink(VehicleLink):
         async for q in self.telemetry.subscribe_attitude_quaternion():
             now = self._seen()
             t = q.timestamp_us * 1e-6
-            self.state.q = (q.w, q.x, q.y, q.z)
-            self.state.t_att, self.state.wall_att = t, now
-            self.clock.observe(t, now)
+            if self._valid(self.state.set_attitude((q.w, q.x, q.y, q.z), None, t, now)):
+                self.clock.observe(t, now)
 
     async def _rates(self) -> None:
         async for w in self.telemetry.subscribe_attitude_angular_velocity_body():
-            self.state.omega_rad_s = (w.roll_rad_s, w.pitch_rad_s, w.yaw_rad_s)
+            self._valid(self.state.set_rates((w.roll_rad_s, w.pitch_rad_s, w.yaw_rad_s)))
 
     async def _position(self) -> None:
         # PositionVelocityNed carries no timestamp: stamp it with the vehicle clock at arrival
         async for pv in self.telemetry.subscribe_position_velocity_ned():
             now = self._seen()
             p, v = pv.position, pv.velocity
-            self.state.pos_ned_m = (p.north_m, p.east_m, p.down_m)
-            self.state.vel_ned_m_s = (v.north_m_s, v.east_m_s, v.down_m_s)
-            self.state.t_pos = self.clock.now(now) if self.clock.ready else self.state.t_att
-            self.state.wall_pos = now
+            t = self.clock.now(now) if self.clock.ready else self.state.t_att
+            self._valid(self.state.set_position((p.north_m, p.east_m, p.down_m),
+                                                (v.north_m_s, v.east_m_s, v.down_m_s), t, now))
 
     async def _imu(self) -> None:
         async for imu in self.telemetry.subscribe_imu():
             now = self._seen()
             a = imu.acceleration_frd
             t = imu.timestamp_us * 1e-6
-            self.state.specific_force_body_m_s2 = (a.forward_m_s2, a.right_m_s2, a.down_m_s2)
-            self.state.t_imu, self.state.wall_imu = t, now
-            self.clock.observe(t, now)
+            if self._valid(self.state.set_imu((a.forward_m_s2, a.right_m_s2, a.down_m_s2), t, now)):
+                self.clock.observe(t, now)
 
     async def _mode(self) -> None:
         async for mode in self.telemetry.subscribe_flight_mode():

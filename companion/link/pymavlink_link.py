@@ -5,6 +5,9 @@ grown) and are parsed by :meth:`PymavlinkLink.run`, one datagram at a time. Only
 the autopilot this link locked on to (the first autopilot heartbeat) update the state. Commands
 are sent as COMMAND_LONG and retried until their COMMAND_ACK arrives. Every datagram, in and
 out, is handed to the ``traffic`` hook for the flight's ``.tlog``.
+
+With a signing key, everything sent is signed and only frames signed with the key (and not
+replayed) are believed: a spoofed heartbeat or position cannot steer the controller.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from companion.state import VehicleState
 
 from .base import LinkError, TrafficHook, VehicleLink, parse_url
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
+from .signing import SignatureCheck, enable_signing, fingerprint
 from .wire import new_parser, parse_datagram
 
 __all__ = ["PymavlinkLink"]
@@ -52,7 +56,7 @@ class _Protocol(asyncio.DatagramProtocol):
 
 class PymavlinkLink(VehicleLink):
     def __init__(self, url: str, traffic: TrafficHook | None = None, sysid: int = 255, compid: int = 191,
-                 command_timeout_s: float = 1.0, command_retries: int = 5) -> None:
+                 command_timeout_s: float = 1.0, command_retries: int = 5, signing_key: bytes | None = None) -> None:
         self.direction, host, port = parse_url(url)
         self.address = (host, port)
         self.traffic = traffic
@@ -62,6 +66,11 @@ class PymavlinkLink(VehicleLink):
         self.stats: Counter[str] = Counter()
         self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
         self.parser = new_parser()
+        self.signature_check: SignatureCheck | None = None
+        self.signing_rejections: Counter[str] = Counter()
+        if signing_key is not None:
+            enable_signing(self.mav, signing_key)
+            self.signature_check = SignatureCheck(signing_key, allow_unsigned=frozenset({"RADIO_STATUS"}))
         self.command_timeout_s = command_timeout_s
         self.command_retries = command_retries
         """5 tries: with 10% loss each way one try fails 19% of the time; 3 tries would still fail
@@ -141,8 +150,15 @@ class PymavlinkLink(VehicleLink):
         parsed = parse_datagram(self.parser, data)
         if parsed.bad:
             self.stats["bad_data"] += parsed.bad
+        check = self.signature_check
         for msg in parsed.messages:
             kind = msg.get_type()
+            if check is not None:
+                reason = check.verdict(msg)
+                if reason is not None:
+                    self.stats["signing_rejected"] += 1
+                    self.signing_rejections[f"{reason} {kind}"] += 1
+                    continue
             try:
                 self._handle(kind, msg, wall)
             except Exception:  # a malformed field must not stop the reader
@@ -174,22 +190,18 @@ class PymavlinkLink(VehicleLink):
         st.wall_last = wall
         if kind == "ATTITUDE_QUATERNION":
             t = msg.time_boot_ms * 1e-3
-            st.q = (msg.q1, msg.q2, msg.q3, msg.q4)
-            st.omega_rad_s = (msg.rollspeed, msg.pitchspeed, msg.yawspeed)
-            st.t_att, st.wall_att = t, wall
-            self.clock.observe(t, wall)
+            if self._valid(st.set_attitude((msg.q1, msg.q2, msg.q3, msg.q4),
+                                           (msg.rollspeed, msg.pitchspeed, msg.yawspeed), t, wall)):
+                self.clock.observe(t, wall)
         elif kind == "LOCAL_POSITION_NED":
             t = msg.time_boot_ms * 1e-3
-            st.pos_ned_m = (msg.x, msg.y, msg.z)
-            st.vel_ned_m_s = (msg.vx, msg.vy, msg.vz)
-            st.t_pos, st.wall_pos = t, wall
-            self.clock.observe(t, wall)
+            if self._valid(st.set_position((msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), t, wall)):
+                self.clock.observe(t, wall)
         elif kind == "HIGHRES_IMU":
             if msg.fields_updated & 0x7 == 0x7:
                 t = msg.time_usec * 1e-6
-                st.specific_force_body_m_s2 = (msg.xacc, msg.yacc, msg.zacc)
-                st.t_imu, st.wall_imu = t, wall
-                self.clock.observe(t, wall)
+                if self._valid(st.set_imu((msg.xacc, msg.yacc, msg.zacc), t, wall)):
+                    self.clock.observe(t, wall)
         elif kind == "EXTENDED_SYS_STATE":
             st.landed_state = msg.landed_state
         elif kind == "SYS_STATUS":
@@ -210,14 +222,30 @@ class PymavlinkLink(VehicleLink):
             if fut is not None and not fut.done():
                 fut.set_result(msg.param_value)
 
+    def _valid(self, accepted: bool) -> bool:
+        if not accepted:
+            self.stats["invalid_telemetry"] += 1  # NaN, inf or impossible: the sample is ignored
+        return accepted
+
     # --- connection ----------------------------------------------------------------------
 
     async def wait_connected(self, timeout_s: float) -> None:
         try:
             await asyncio.wait_for(self._connected.wait(), timeout_s)
         except TimeoutError:
-            raise LinkError(f"no autopilot heartbeat from {self.address[0]}:{self.address[1]} "
-                            f"within {timeout_s:g} s") from None
+            where = f"{self.address[0]}:{self.address[1]}"
+            beats = {k.rsplit(" ", 1)[0]: n for k, n in self.signing_rejections.items() if k.endswith(" HEARTBEAT")}
+            if beats:
+                why = ", ".join(f"{n} {reason}" for reason, n in sorted(beats.items()))
+                raise LinkError(f"heartbeats from {where} were not signed with our key ({why}): the vehicle signs "
+                                f"with another key, or not at all") from None
+            if self.signature_check is None:
+                hint = ("; if the vehicle uses MAVLink signing, give its key "
+                        "(--signing-key-file or $MAVLINK_SIGNING_KEY)")
+            else:
+                hint = (f"; a signing vehicle ignores a wrong key: does it have ours (fingerprint "
+                        f"{fingerprint(self.signature_check.key)})?")
+            raise LinkError(f"no autopilot heartbeat from {where} within {timeout_s:g} s{hint}") from None
         assert self.flavour is not None
         if self.flavour is ARDUPILOT:
             await self._prepare_ardupilot()

@@ -18,6 +18,14 @@ from pymavlink import mavutil
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def child_env(**extra: str) -> dict[str, str]:
+    """The environment for a child process: unbuffered, and no signing key unless a test gives one
+    (a developer's own MAVLINK_SIGNING_KEY must not change what the tests fly)."""
+    env = {k: v for k, v in os.environ.items() if k != "MAVLINK_SIGNING_KEY"}
+    env.update(PYTHONUNBUFFERED="1", **extra)
+    return env
+
+
 def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
@@ -27,17 +35,21 @@ def free_udp_port() -> int:
 class SitlProcess:
     """``python -m sitl`` in its own process; :meth:`stop` returns its final report."""
 
-    def __init__(self, *args: str, speedup: float = 2.0) -> None:
+    def __init__(self, *args: str, speedup: float = 2.0, env: dict[str, str] | None = None) -> None:
         self.port = free_udp_port()
         self.speedup = speedup
         cmd = [sys.executable, "-m", "sitl", "--listen", f"127.0.0.1:{self.port}", "--speedup", str(speedup), *args]
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                     env=env)
-        line = self.proc.stdout.readline()  # type: ignore[union-attr]
-        if "listening" not in line:
-            rest = self.proc.communicate(timeout=5)[0]
-            raise RuntimeError(f"sitl did not start: {line}{rest}")
+                                     env=child_env(**(env or {})))
+        self.banner: list[str] = []
+        while True:
+            line = self.proc.stdout.readline()  # type: ignore[union-attr]
+            self.banner.append(line)
+            if "listening" in line:
+                break
+            if not line or len(self.banner) > 5:
+                rest = self.proc.communicate(timeout=5)[0]
+                raise RuntimeError(f"sitl did not start: {''.join(self.banner)}{rest}")
         self.report: dict | None = None
 
     @property
@@ -64,8 +76,8 @@ class SitlProcess:
 def sitl():
     procs: list[SitlProcess] = []
 
-    def start(*args: str, speedup: float = 2.0) -> SitlProcess:
-        p = SitlProcess(*args, speedup=speedup)
+    def start(*args: str, speedup: float = 2.0, env: dict[str, str] | None = None) -> SitlProcess:
+        p = SitlProcess(*args, speedup=speedup, env=env)
         procs.append(p)
         return p
 
@@ -82,7 +94,7 @@ class RelayProcess:
     def __init__(self, to: str, *args: str) -> None:
         cmd = [sys.executable, "-m", "sitl.relay", "--listen", "127.0.0.1:0", "--to", to, *args]
         self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                     env=dict(os.environ, PYTHONUNBUFFERED="1"))
+                                     env=child_env())
         line = self.proc.stdout.readline()  # type: ignore[union-attr]
         if "listening on" not in line:
             raise RuntimeError(f"relay did not start: {line}{self.proc.communicate(timeout=5)[0]}")
@@ -206,12 +218,11 @@ def quat_angle_deg(a, b) -> float:
 class CompanionProcess:
     """``python -m companion fly ...`` in its own process; :meth:`wait_for` watches its output."""
 
-    def __init__(self, mission: str, url: str, out_dir: Path, *args: str) -> None:
+    def __init__(self, mission: str, url: str, out_dir: Path, *args: str, env: dict[str, str] | None = None) -> None:
         cmd = [sys.executable, "-m", "companion", "fly", str(ROOT / mission), "--connect", f"udp://{url}",
                "--out", str(out_dir), "--no-plots", *args]
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                     env=env)
+                                     env=child_env(**(env or {})))
         self.lines: list[str] = []
         self.out_dir = out_dir
 
@@ -249,8 +260,8 @@ class CompanionProcess:
 def companion(tmp_path):
     procs: list[CompanionProcess] = []
 
-    def start(mission: str, url: str, *args: str) -> CompanionProcess:
-        p = CompanionProcess(mission, url, tmp_path / "flights", *args)
+    def start(mission: str, url: str, *args: str, env: dict[str, str] | None = None) -> CompanionProcess:
+        p = CompanionProcess(mission, url, tmp_path / "flights", *args, env=env)
         procs.append(p)
         return p
 

@@ -48,8 +48,15 @@ action = "land"
 class Observer:
     """Records the vehicle's LOCAL_POSITION_NED, HEARTBEAT and STATUSTEXT on its own socket."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, signing_key: bytes | None = None) -> None:
         self.m = mavutil.mavlink_connection(f"udpout:{url}", source_system=250, source_component=190)
+        if signing_key is not None:  # signing is MAVLink 2; mavutil speaks MAVLink 1 unless told otherwise
+            from pymavlink.dialects.v20 import ardupilotmega as v2
+
+            self.m.mav = v2.MAVLink(self.m, srcSystem=250, srcComponent=190)
+            self.m.mav.robust_parsing = True
+            self.m.WIRE_PROTOCOL_VERSION = "2.0"  # else the first MAVLink 2 frame replaces mav (and its key)
+            self.m.setup_signing(signing_key, sign_outgoing=True)
         self.positions: list[tuple[float, float, float, float]] = []
         self.texts: list[str] = []
         self.armed: list[tuple[float, bool, int]] = []

@@ -41,6 +41,9 @@ def test_identity_version_home_and_ping(sitl, client):
     c.m.mav.ping_send(123456, 42, 0, 0)
     pong = c.wait("PING", lambda p: p.seq == 42)
     assert pong.time_usec == 123456 and pong.target_system == 255
+    c.m.mav.timesync_send(0, 987654321)  # a request; the answer carries simulated time in ns
+    sync = c.wait("TIMESYNC", lambda m: m.ts1 == 987654321)
+    assert 0 < sync.tc1 < 60e9
 
 
 def test_set_message_interval_is_acknowledged_and_honoured(sitl, client):

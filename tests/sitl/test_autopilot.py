@@ -68,6 +68,23 @@ def test_only_the_system_that_took_offboard_control_may_steer():
     assert ap.set_mode(Mode.OFFBOARD, sender=77).result == MavResult.DENIED
 
 
+
+def test_another_systems_stream_neither_enables_offboard_nor_becomes_the_owners_setpoint():
+    """Before offboard anyone may stream; a 60 deg, full-thrust setpoint from system 77 arriving last
+    must not be what the vehicle flies when system 200 takes control."""
+    ap = make()
+    airborne(ap)
+    stream(ap, 1.0, sender=77)
+    assert ap.set_mode(Mode.OFFBOARD, sender=200).result == MavResult.DENIED  # 200 has not streamed
+    stream(ap, 1.0, sender=200)
+    rogue = quat.from_euler(math.radians(60), 0.0, 0.0)
+    assert ap.attitude_target(77, 0, rogue, (0.0, 0.0, 0.0), 1.0) is None  # the newest, before offboard
+    assert ap.set_mode(Mode.OFFBOARD, sender=200).result == MavResult.ACCEPTED
+    assert quat.angle_between(ap.offboard_attitude.q_d, rogue) > math.radians(55)
+    run(ap, 0.02)  # 20 ms with no setpoint from 200: level, at hover thrust
+    roll = quat.to_euler(ap.vehicle.state.q)[0]
+    assert abs(roll) < math.radians(2) and ap.vehicle.state.vel_ned_m_s[2] == pytest.approx(0.0, abs=0.05)
+
 def test_rates_only_setpoint_turns_the_vehicle_at_the_commanded_rate():
     """type_mask bit 7: the attitude is ignored, body rates are flown, as an attitude reference
     integrated from them. A 1 rad/s yaw rate for 1 s turns the reference by exactly 1 rad; the
