@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 OUT ?= results
 
-.PHONY: setup demo experiments test lint bench clean
+.PHONY: setup demo experiments test lint bench fuzz clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +22,11 @@ experiments: setup
 
 test: setup lint
 	$(PY) -m pytest -q
+
+# the long fuzz run (CI runs the same tests with 150 examples each); FUZZ_EXAMPLES to change it
+FUZZ_EXAMPLES ?= 20000
+fuzz: setup
+	FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(PY) -m pytest -q tests/fuzz --durations=0
 
 lint: setup
 	$(VENV)/bin/ruff check companion sitl tests benchmarks

@@ -75,7 +75,7 @@ def locate(text: str, key_path: str) -> int | None:
                 return lineno  # the key names a whole table: point at its header
             continue
         k = _KEY.match(raw)
-        if k and current_ok and k.group(1).strip("\"'") == last_name:
+        if k and current_ok and k.group(1).strip("\"'") == last_name.strip("\"'"):
             return lineno
     return best
 
@@ -84,14 +84,20 @@ def load_toml(path: str | Path) -> tuple[dict[str, Any], str]:
     """Parsed TOML and its text; a syntax error becomes a :class:`ConfigError` with the line."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        raw = p.read_bytes()
     except OSError as exc:
         raise ConfigError(p, None, "", f"cannot read file: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise ConfigError(p, line, "", f"not UTF-8 text (byte 0x{raw[exc.start]:02x})") from None
     try:
         return tomllib.loads(text), text
     except tomllib.TOMLDecodeError as exc:
         m = re.search(r"line (\d+)", str(exc))
-        raise ConfigError(p, int(m.group(1)) if m else None, "", f"not valid TOML: {exc}") from None
+        line = int(m.group(1)) if m else max(1, len(text.splitlines())) if "end of document" in str(exc) else None
+        raise ConfigError(p, line, "", f"not valid TOML: {exc}") from None
 
 
 def load_dataclass(cls: type[T], data: Mapping[str, Any], path: str | Path, text: str, key_path: str = "") -> T:
@@ -103,4 +109,7 @@ def load_dataclass(cls: type[T], data: Mapping[str, Any], path: str | Path, text
     try:
         return from_mapping(cls, data, key_path)
     except ParamError as exc:
-        raise ConfigError(path, locate(text, exc.key_path), exc.key_path, exc.detail) from None
+        key = exc.key_path
+        if not key or key.endswith("."):
+            key += '""'  # the key's name is empty (`"" = 1`): say so rather than print nothing
+        raise ConfigError(path, locate(text, key), key, exc.detail) from None

@@ -33,6 +33,8 @@ from .wire import new_parser, parse_datagram
 __all__ = ["PymavlinkLink"]
 
 QUEUE_SIZE = 2000
+MAX_PARAMS = 4096
+"""parameter values kept (PX4 has about 1500)"""
 
 # telemetry the controller needs, and how often (Hz); asked for at connection
 STREAM_RATES_HZ = {
@@ -217,6 +219,9 @@ class PymavlinkLink(VehicleLink):
         elif kind == "PARAM_VALUE":
             name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode("ascii", "replace")
             name = name.split("\x00", 1)[0]
+            if name not in st.params and len(st.params) >= MAX_PARAMS:
+                self.stats["params_dropped"] += 1  # a vehicle, or someone posing as one, inventing names
+                return
             st.params[name] = msg.param_value
             fut = self._params.get(name)
             if fut is not None and not fut.done():
