@@ -26,6 +26,7 @@ from typing import Awaitable
 
 from companion.control.params import PositionGains
 
+from .health import HealthMonitor
 from .link import LinkError, VehicleLink, open_link
 from .link.signing import fingerprint
 from .mission import Mission, Step
@@ -130,6 +131,7 @@ class Flight:
         self.sent = 0
         self.rejected = 0
         self.late_ticks = 0
+        self.health = HealthMonitor()
         self.tick_periods: list[float] = []
         """wall-clock spacing of sent setpoints (bounded), for the jitter benchmark"""
         self._last_sent_wall = math.nan
@@ -248,6 +250,11 @@ class Flight:
             self.recorder.row(state, tick, tick is not None and tick.rejected is None,
                               thrust.thrust_max_n if thrust else math.nan,
                               thrust.estimated_thrust_max_n if thrust else math.nan)
+            stats = getattr(self.link, "stats", {})
+            health = self.health.sample(t_next, stats.get("received", 0), self.sent, self.link.rx_queue_depth,
+                                        self.late_ticks)
+            if health is not None:
+                self.recorder.health(health)
 
     async def _streamer(self) -> None:
         while not self.finished.is_set():

@@ -33,10 +33,14 @@ def start_vehicle(speedup: float, *extra: str) -> tuple[subprocess.Popen[str], i
         [sys.executable, "-m", "sitl", "--listen", f"127.0.0.1:{port}", "--speedup", str(speedup), *extra],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
     )
-    line = proc.stdout.readline() if proc.stdout else ""
-    if "listening" not in line:
+    lines = []
+    while proc.stdout and len(lines) < 5:  # "listening" comes last (after the signing notice, if any)
+        lines.append(proc.stdout.readline())
+        if "listening" in lines[-1] or not lines[-1]:
+            break
+    if not lines or "listening" not in lines[-1]:
         proc.kill()
-        raise RuntimeError(f"the simulated vehicle did not start: {line}")
+        raise RuntimeError(f"the simulated vehicle did not start: {''.join(lines)}")
     return proc, port
 
 

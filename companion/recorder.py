@@ -5,6 +5,8 @@ A flight folder holds
 - ``timeseries.csv``: one row per control tick (state, reference, setpoint, estimates);
 - ``traffic.tlog``: every datagram sent and received, each prefixed with its 8-byte big-endian
   microsecond UNIX time (the format MAVProxy writes and pymavlink's ``mavlogdump``/MAVExplorer read);
+- ``health.csv``: every 10 vehicle seconds, the companion's memory, CPU, receive queue, message
+  and setpoint rates (:mod:`companion.health`);
 - ``segments.json`` and ``summary.md``: per mission step, RMS and peak position error, peak tilt,
   the final external-force estimate and the thrust-scale estimate.
 
@@ -25,6 +27,7 @@ from typing import IO
 
 from companion.control import quaternion as quat
 
+from .health import HEALTH_COLUMNS
 from .offboard import Tick
 from .state import VehicleState
 
@@ -88,6 +91,7 @@ class FlightRecorder:
         self._tlog: IO[bytes] = open(self.folder / "traffic.tlog", "wb", buffering=1 << 16)
         self._wall0 = time.monotonic()
         self.rows = 0
+        self._health: IO[str] | None = None
 
     # --- raw traffic -------------------------------------------------------------------------
 
@@ -150,11 +154,20 @@ class FlightRecorder:
         ))
         self.rows += 1
 
+    def health(self, row: tuple) -> None:
+        """A row of ``health.csv`` (:mod:`companion.health`)."""
+        if self._health is None:
+            self._health = open(self.folder / "health.csv", "w", newline="", buffering=1)
+            csv.writer(self._health).writerow(HEALTH_COLUMNS)
+        csv.writer(self._health).writerow(row)
+
     # --- closing -------------------------------------------------------------------------
 
     def close(self, summary: dict) -> None:
         self._csv_file.close()
         self._tlog.close()
+        if self._health is not None:
+            self._health.close()
         data = {**summary, "segments": [s.as_dict() for s in self.segments]}
         (self.folder / "segments.json").write_text(json.dumps(data, indent=1, default=_json_default))
         (self.folder / "summary.md").write_text(summary_markdown(data))

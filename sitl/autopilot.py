@@ -175,9 +175,21 @@ class Autopilot:
     """Modes, arming and setpoints around one :class:`SimVehicle`; call :meth:`step` at the
     plant rate."""
 
+    POSITION_TIMEOUT_S = 0.5
+    """no tracking sample for this long in the air: position lost (PX4's COM_POS_FS_DELAY is 1 s)"""
+    BLIND_DESCENT_M_S = 0.7
+    SENSOR_FAILSAFES = ("IMU failed", "position lost", "position lost, landing")
+
     def __init__(self, vehicle: SimVehicle, params: AutopilotParams | None = None) -> None:
         self.vehicle = vehicle
+        vehicle.enable_fault_checks()
         self.params = params or AutopilotParams()
+        self.accel_bias_z_m_s2 = 0.0
+        """vertical accelerometer bias (NED), learnt against the tracking system over ~2 s"""
+        self.blind_vz_m_s = 0.0
+        """vertical speed integrated from the accelerometer while position is lost (NED, + down)"""
+        self._blind_height_m = 0.0
+        self._blind_descended_m = 0.0
         sc = vehicle.scenario
         self.dt = vehicle.dt
         self.pos_div = int(round(sc.plant_rate_hz / sc.position_rate_hz))
@@ -194,6 +206,8 @@ class Autopilot:
         self.failsafe: str | None = None
         self.failsafe_time = 0.0
         self.messages: deque[tuple[Severity, str]] = deque(maxlen=32)
+        self.events: deque[tuple[float, str]] = deque(maxlen=64)
+        """(time, text) of warnings and worse: failsafes, faults, refusals (for reports)"""
         self.rejected: dict[str, int] = {}
         """counts of rejected inputs by reason (setpoints, commands), for tests and reports"""
 
@@ -224,6 +238,12 @@ class Autopilot:
 
     def _say(self, severity: Severity, text: str) -> None:
         self.messages.append((severity, text[:50]))
+        if severity <= Severity.WARNING:
+            self.events.append((round(self.t, 3), text))
+
+    def say(self, severity: Severity, text: str) -> None:
+        """A STATUSTEXT from outside the autopilot (e.g. a fault being injected)."""
+        self._say(severity, text)
 
     def _reject(self, reason: str) -> None:
         self.rejected[reason] = self.rejected.get(reason, 0) + 1
@@ -265,6 +285,8 @@ class Autopilot:
         return CommandResult(result, reason)
 
     def _arm_disarm(self, arm: float, force: float) -> CommandResult:
+        if arm == 1.0 and self.vehicle.imu_failed:
+            return self._deny(f"Arming denied: IMU failed ({self.vehicle.imu_failed})")
         if arm == 1.0:
             if self.armed:
                 return CommandResult(MavResult.ACCEPTED)
@@ -333,6 +355,8 @@ class Autopilot:
     takeoff_alt_m = AutopilotParams.takeoff_alt_m
 
     def set_mode(self, mode: Mode, sender: int = 255) -> CommandResult:
+        if self.failsafe in self.SENSOR_FAILSAFES and mode != Mode.LAND:
+            return self._deny(f"{mode.name} denied: {self.failsafe}, landing")
         if mode == self.mode and self.failsafe is None:
             if mode == Mode.OFFBOARD and sender != self.offboard_owner:
                 return self._deny("Offboard denied: another system has control")
@@ -493,8 +517,40 @@ class Autopilot:
         self._update_landed()
         self._k += 1
 
+    def _sensor_failsafes(self) -> None:
+        """A failed IMU or lost position in the air: say why once, and land (blind if need be)."""
+        v = self.vehicle
+        if self.failsafe != "position lost" and v.position_age_s < 0.05:  # fresh tracking only
+            # learn the accelerometer's vertical bias against the tracking system, for a blind descent
+            w, x, y, z = v.estimator.q
+            f = v.imu_sample.specific_force_body_m_s2
+            sf_ned_z = (2.0 * (x * z - w * y) * f[0] + 2.0 * (y * z + w * x) * f[1]
+                        + (w * w - x * x - y * y + z * z) * f[2])  # third row of R(q) times f
+            g = v.scenario.vehicle.gravity_m_s2
+            self.accel_bias_z_m_s2 += self.dt / 2.0 * (sf_ned_z + g - v.tracked.accel_ned_m_s2[2]
+                                                       - self.accel_bias_z_m_s2)
+        if not self.armed or self.landed:
+            return
+        if v.imu_failed and self.failsafe != "IMU failed" and self.failsafe != "position lost":
+            self._say(Severity.CRITICAL, f"IMU failed ({v.imu_failed}): landing")
+            self._enter(Mode.LAND)
+            self.failsafe, self.failsafe_time = "IMU failed", self.t
+        if v.position_age_s > self.POSITION_TIMEOUT_S and self.failsafe != "position lost":
+            self._say(Severity.CRITICAL, "Position lost: descending")
+            if self.mode != Mode.LAND:
+                self._enter(Mode.LAND)
+            self.failsafe, self.failsafe_time = "position lost", self.t
+            self.blind_vz_m_s = float(v.tracked.vel_ned_m_s[2])
+            self._blind_height_m = max(0.0, self.ground_z - float(v.tracked.pos_ned_m[2]))
+            self._blind_descended_m = 0.0
+        elif self.failsafe == "position lost" and v.position_age_s < 0.05:
+            self._say(Severity.WARNING, "Position back: landing")  # land where it is, with position
+            self.failsafe = "position lost, landing"
+            self._enter(Mode.LAND)
+
     def _failsafes(self) -> None:
         p, t = self.params, self.t
+        self._sensor_failsafes()
         if self.mode == Mode.OFFBOARD and t - self.last_setpoint_time > p.offboard_loss_timeout_s:
             self.failsafe, self.failsafe_time = "offboard lost", t
             self._say(Severity.CRITICAL, "Failsafe: offboard lost, holding")
@@ -558,6 +614,8 @@ class Autopilot:
         if self.landed and mode not in (Mode.TAKEOFF, Mode.OFFBOARD, Mode.GUIDED):
             self._reset_controllers()
             return self._idle_setpoint()
+        if self.failsafe == "position lost":
+            return self._blind_descent()
         if self._k % self.pos_div != 0:
             return self.setpoint
         if mode == Mode.RTL:
@@ -574,6 +632,27 @@ class Autopilot:
         ref = self.ref_filter.update(self.target, self.target_yaw, self.pos_dt)
         meas = PositionMeasurement(ms.pos_ned_m, ms.vel_ned_m_s, v.estimator.q, sf_ned)
         return self.position_loop.update(meas, ref, self.pos_dt)
+
+    def _blind_descent(self) -> AttitudeSetpoint:
+        """Level, descending at BLIND_DESCENT_M_S by the accelerometer alone (no position): the
+        vertical speed is integrated from the specific force (less the bias learnt while tracked).
+        Nothing tells touch-down without position (the ground stops the vehicle, the IMU still
+        reads 1 g), so the vehicle counts itself down once the integrated descent exceeds the
+        height it had when position was lost by 30 % + 0.5 m; resting on the ground meanwhile
+        costs nothing (the commanded thrust is below the weight)."""
+        v, m = self.vehicle, self.vehicle.scenario.vehicle
+        q = v.estimator.q
+        sf_ned = quat.rotate(q, v.imu_sample.specific_force_body_m_s2)
+        self.blind_vz_m_s += (sf_ned[2] + m.gravity_m_s2 - self.accel_bias_z_m_s2) * self.dt
+        vz = self.blind_vz_m_s
+        self._blind_descended_m += max(vz, 0.0) * self.dt
+        if self._blind_descended_m > 1.3 * self._blind_height_m + 0.5:
+            self.landed, self.touchdown_time = True, self.t
+            self._say(Severity.INFO, "Landed (counted down without position)")
+            return self._idle_setpoint()
+        thrust = m.mass_kg * (m.gravity_m_s2 - 2.0 * (self.BLIND_DESCENT_M_S - vz))
+        yaw = float(quat.to_euler(q)[2])
+        return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3, min(max(thrust, 0.3 * m.weight_n), m.thrust_max_n))
 
     def _guided_target(self, sp: AttitudeSetpoint) -> AttitudeSetpoint:
         """ArduPilot's handling of an attitude target: tilt clipped to ANGLE_MAX; thrust is
@@ -607,6 +686,8 @@ class Autopilot:
     _rate_q: tuple | None = None
 
     def _update_landed(self) -> None:
+        if self.failsafe == "position lost":
+            return  # the tracked position is frozen: the blind descent decides
         ms = self.vehicle.tracked
         height = self.ground_z - ms.pos_ned_m[2]
         speed = math.sqrt(sum(v * v for v in ms.vel_ned_m_s))

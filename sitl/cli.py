@@ -91,7 +91,8 @@ async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) ->
     await server.run(stop, duration_s)
     report = {"t": round(server.ap.t, 3), "stats": dict(server.stats), "rejections": dict(server.rejections),
               "signing_rejections": dict(server.signing_rejections),
-              "mode": server.ap.mode.name, "armed": server.ap.armed, "loop_lateness_ms": server.lateness_ms()}
+              "mode": server.ap.mode.name, "armed": server.ap.armed, "events": list(server.ap.events),
+              "loop_lateness_ms": server.lateness_ms()}
     print(f"sitl: stopped {json.dumps(report)}", flush=True)
 
 

@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
-from .autopilot import Autopilot
+from .autopilot import Autopilot, Severity
 from .wind import TurbulenceParams, WindParams
 
 __all__ = ["Param", "ParamTable", "build_parameters"]
@@ -162,6 +162,15 @@ def build_parameters(ap: Autopilot) -> ParamTable:
             v.plant.__post_init__()
         return apply
 
+    def fault(window: str) -> Callable[[float], None]:
+        """Setting the parameter starts the fault now, for that many seconds (0 ends it)."""
+        def apply(x: float) -> None:
+            assert v.faults is not None
+            setattr(v.faults, window, (v.t, v.t + x) if x > 0 else (math.inf, math.inf))
+            if x > 0:
+                ap.say(Severity.WARNING, f"Fault injected: {window} for {x:g} s")
+        return apply
+
     a, g, pg = ap.params, sc.attitude, sc.position
     hover = sc.vehicle.weight_n / sc.vehicle.thrust_max_n
     params = [
@@ -218,6 +227,9 @@ def build_parameters(ap: Autopilot) -> ParamTable:
               model_factor("inertia")),
         *[Param(f"SIM_MOT{i + 1}_EFF", sc.airframe.motor_efficiency[i], 0.0, 1.5,
                 f"motor {i + 1} thrust efficiency", motor(i)) for i in range(4)],
+        Param("SIM_MOCAP_DROP", 0.0, 0.0, 3600.0, "tracking dropout from now, for [s]", fault("mocap_dropout")),
+        Param("SIM_IMU_FREEZE", 0.0, 0.0, 3600.0, "IMU frozen from now, for [s]", fault("imu_frozen")),
+        Param("SIM_IMU_NAN", 0.0, 0.0, 3600.0, "IMU reads NaN from now, for [s]", fault("imu_nan")),
         Param("SIM_SEED", float(v.seeds if isinstance(v.seeds, int) else v.seeds[0]), 0.0, 2**24,
               "random seed of this vehicle"),
     ]

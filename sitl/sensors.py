@@ -112,6 +112,12 @@ class Mocap:
             fresh = self._deliver(taken, pos, q)
         return fresh
 
+    def drop_out(self, t_s: float) -> None:
+        """A dropout at ``t_s``: nothing is taken, and what was in transit never arrives."""
+        while t_s + 1e-9 >= self._next_t:
+            self._next_t += self.period_s
+        self._pending.clear()
+
     def _deliver(self, taken_s: float, pos: Vec3, q: Quat) -> MocapSample:
         """Differentiate with the samples' own timestamps (they fall on the plant's time grid)."""
         prev = self._pos_prev

@@ -16,7 +16,7 @@ from __future__ import annotations
 import asyncio
 import math
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -100,8 +100,8 @@ class MavlinkServer:
         self._signing_reported: set[str] = set()
         self.peers: dict[tuple[str, int], float] = {p: math.inf for p in cfg.peers}
         self.transport: asyncio.DatagramTransport | None = None
-        self.step_lateness_s: list[float] = []
-        """wall-clock lateness of each loop pass (bounded ring), for the latency benchmark"""
+        self.step_lateness_s: deque[float] = deque(maxlen=100_000)
+        """wall-clock lateness of the latest loop passes, for the latency benchmark"""
         # ArduCopter sends only HEARTBEAT (and STATUSTEXT) until a client asks for streams
         rates = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: 1.0} if ap.ardupilot else cfg.rates_hz
         self._intervals: dict[int, float] = {m: 1.0 / hz for m, hz in rates.items() if hz > 0}
@@ -156,7 +156,9 @@ class MavlinkServer:
         enc = self.telemetry.encoders
         for msg_id, due in self._due.items():
             if t + 1e-9 >= due:
-                self.send(enc[msg_id]())
+                msg = enc[msg_id]()
+                if msg is not None:  # None: nothing valid to say now (e.g. no position)
+                    self.send(msg)
                 interval = self._intervals[msg_id]
                 self._due[msg_id] = due + interval if t - due < interval else t + interval
         self._next_due = min(self._due.values(), default=math.inf)
@@ -308,8 +310,12 @@ class MavlinkServer:
             self._reject("request message: cannot send that message")
             self._ack(msg, command, MavResult.DENIED)
             return
+        reply = self.telemetry.encoders[int(msg_id)]()
+        if reply is None:
+            self._ack(msg, command, MavResult.TEMPORARILY_REJECTED)
+            return
         self._ack(msg, command, MavResult.ACCEPTED)
-        self.send(self.telemetry.encoders[int(msg_id)]())
+        self.send(reply)
 
     # --- setpoints -------------------------------------------------------------------------
 
@@ -444,8 +450,6 @@ class MavlinkServer:
                 due_wall = wall0 + (ap.t + dt - sim0) / speedup
                 if now >= due_wall:
                     lateness.append(now - due_wall)
-                    if len(lateness) > 200_000:
-                        del lateness[:100_000]
                 steps = 0
                 while ap.t + 0.5 * dt <= target:
                     ap.step()

@@ -21,6 +21,9 @@ from .autopilot import Autopilot, custom_mode
 
 __all__ = ["GeoOrigin", "Telemetry", "DEFAULT_RATES_HZ", "SYS_STATUS_SENSORS", "PREARM_CHECK"]
 
+POSITION_STALE_S = 0.1
+"""tracking samples normally arrive every 17 ms, 10 ms late"""
+
 EARTH_RADIUS_M = 6378137.0
 
 # SYS_STATUS sensor bits MAVSDK reads for its health flags (gyro, accel, mag calibrated; GPS and
@@ -153,7 +156,10 @@ class Telemetry:
         w = v.omega_est
         return self.mav.attitude_encode(self.time_boot_ms, _f(r), _f(p), _f(y), _f(w[0]), _f(w[1]), _f(w[2]))
 
-    def local_position_ned(self) -> mavlink.MAVLink_message:
+    def local_position_ned(self) -> mavlink.MAVLink_message | None:
+        """None (not sent) while the tracking system is silent: a stale position must not look fresh."""
+        if self.ap.vehicle.position_age_s > POSITION_STALE_S:
+            return None
         ms = self.ap.vehicle.tracked
         p, vel = ms.pos_ned_m, ms.vel_ned_m_s
         return self.mav.local_position_ned_encode(

@@ -17,6 +17,7 @@ from companion.control.params import VehicleParams
 from companion.control.vector import ZERO3, Real, Vec3
 
 from .disturbances import Profile, evaluate
+from .faults import ImuMonitor, MocapRates, SensorFaults
 from .dynamics import Plant, RigidBodyState, Wrench
 from .onboard import AttitudeEstimator, OnboardAttitudeLoop
 from .scenario import Scenario
@@ -73,6 +74,37 @@ class SimVehicle:
         self.motors_on = True
         self._sf_sum = [0.0, 0.0, 0.0]
         self._sf_count = 0
+        self.faults: SensorFaults | None = None
+        """injected sensor faults and the firmware's IMU check (the live vehicle: enable_fault_checks)"""
+        self.imu_monitor: ImuMonitor | None = None
+        self.mocap_rates = MocapRates()
+
+    def enable_fault_checks(self) -> None:
+        """Check every IMU sample and accept injected faults (the MAVLink vehicle; the offline
+        simulator, which flies thousands of fault-free vehicles, skips this)."""
+        self.faults = SensorFaults()
+        self.imu_monitor = ImuMonitor()
+
+    _degraded = False
+    DEGRADED_OMEGA_C_RAD_S = 6.0
+    """the attitude loop without a gyro: its rates come from 60 Hz tracking, ~35 ms late, so the
+    loop is slowed to half its crossover (and plain PD: the observers would learn the delay)"""
+
+    def _degrade(self) -> None:
+        sc = self.scenario
+        gains = dataclasses.replace(sc.attitude, omega_c_rad_s=self.DEGRADED_OMEGA_C_RAD_S)
+        self.scenario = dataclasses.replace(sc, attitude=gains)
+        self.set_attitude_controller("pd")
+        self._degraded = True
+
+    @property
+    def imu_failed(self) -> str | None:
+        return self.imu_monitor.failed if self.imu_monitor is not None else None
+
+    @property
+    def position_age_s(self) -> float:
+        """Time since the newest tracking sample was taken."""
+        return self.t - self.mocap.latest.time_s
 
     # --- run-time changes (parameters, fault injection) -------------------------------
 
@@ -100,7 +132,10 @@ class SimVehicle:
         dt = self.dt
         t = self.t
         est = self.estimator
-        self.omega_est = est.predict(self.imu_sample.gyro_rad_s, dt)
+        if self.imu_monitor is not None and self.imu_monitor.failed:
+            self.omega_est = self.mocap_rates.omega_rad_s  # no gyro: rates from the tracking system
+        else:
+            self.omega_est = est.predict(self.imu_sample.gyro_rad_s, dt)
         if self.motors_on:
             cmd = self.onboard.update(est.q, self.omega_est, setpoint, dt)
         else:
@@ -118,6 +153,10 @@ class SimVehicle:
         plant = self.plant
         self.wrench = plant.step(cmd, wind_ned, force, torque, dt)
         sample = self.imu.sample(plant.state, self.wrench)
+        if self.faults is not None:
+            sample = self._faulty_imu(sample, t + dt)
+            if self.imu_monitor is not None and self.imu_monitor.failed and not self._degraded:
+                self._degrade()
         self.imu_sample = sample
         sf = sample.specific_force_body_m_s2
         acc = self._sf_sum
@@ -126,9 +165,28 @@ class SimVehicle:
         acc[2] += sf[2]
         self._sf_count += 1
         self.t = t + dt
-        tracked = self.mocap.update(self.t, plant.state)
+        if self.faults is not None and SensorFaults.active(self.faults.mocap_dropout, self.t):
+            self.mocap.drop_out(self.t)
+            tracked = None
+        else:
+            tracked = self.mocap.update(self.t, plant.state)
         if tracked is not None:
-            est.correct(tracked.q)
+            if self.imu_monitor is not None and self.imu_monitor.failed:
+                est.q = tracked.q
+                self.mocap_rates.update(tracked.time_s, tracked.q)
+            else:
+                est.correct(tracked.q)
+
+    def _faulty_imu(self, sample: ImuSample, t: float) -> ImuSample:
+        """Inject the active IMU faults, then the firmware's check (:class:`ImuMonitor`)."""
+        f = self.faults
+        assert f is not None and self.imu_monitor is not None
+        if SensorFaults.active(f.imu_nan, t):
+            nan = float("nan")
+            sample = ImuSample((nan, nan, nan), (nan, nan, nan))
+        elif SensorFaults.active(f.imu_frozen, t):
+            sample = self.imu_sample if self.imu_sample is not None else sample
+        return self.imu_monitor.check(sample, t)
 
     def mean_specific_force_body(self) -> Vec3:
         """Mean accelerometer reading since the last call (what a slower consumer should use)."""

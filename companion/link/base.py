@@ -97,6 +97,11 @@ class VehicleLink(abc.ABC):
         await self.close()
 
     @property
+    def rx_queue_depth(self) -> int:
+        """Datagrams received but not yet parsed (0 where the backend keeps no queue of ours)."""
+        return 0
+
+    @property
     def in_offboard(self) -> bool:
         return self.state.offboard
 

@@ -118,7 +118,12 @@ class PymavlinkLink(VehicleLink):
         if self.traffic is not None:
             self.traffic(buf)
 
+    @property
+    def rx_queue_depth(self) -> int:
+        return self._queue.qsize()
+
     def _received(self, data: bytes, addr: tuple[str, int]) -> None:
+        self.stats["received"] += 1
         if self._peer is None:
             self._peer = addr  # udpin: whoever talks first is the vehicle
         elif addr != self._peer:
