@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from companion.control import quaternion as quat
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 
@@ -82,8 +83,6 @@ class MocapRates:
     _last: tuple[float, Quat] | None = None
 
     def update(self, t: float, q: Quat) -> Vec3:
-        from companion.control import quaternion as quat
-
         if self._last is not None and t > self._last[0]:
             dt = t - self._last[0]
             raw = quat.log(quat.relative(self._last[1], q))

@@ -22,7 +22,7 @@ from typing import Any, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from companion.link.signing import SIGNED_FLAG, SignatureCheck, enable_signing
+from companion.link.signing import SignatureCheck, enable_signing, is_signed
 from companion.link.wire import new_parser, parse_datagram
 
 from .autopilot import Autopilot, MavResult, Severity
@@ -203,7 +203,7 @@ class MavlinkServer:
                 if reason is not None:
                     self._drop_unauthentic(msg, kind, reason)
                     continue
-                if not msg.get_header().incompat_flags & SIGNED_FLAG:
+                if not is_signed(msg):
                     continue  # allowed unsigned: no effect, and no telemetry for its sender
             good = True
             handler = self._handlers.get(kind)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import abc
 import asyncio
 import math
+from collections import Counter
 from typing import Callable
 
 from companion.clock import VehicleClock
@@ -42,6 +43,13 @@ class VehicleLink(abc.ABC):
     state: VehicleState
     clock: VehicleClock
     flavour: Flavour | None
+    stats: Counter[str]
+
+    def _valid(self, accepted: bool) -> bool:
+        """Pass through a ``VehicleState.set_*`` result, counting a refused sample."""
+        if not accepted:
+            self.stats["invalid_telemetry"] += 1  # NaN, inf or impossible: the sample is ignored
+        return accepted
 
     @abc.abstractmethod
     async def open(self) -> None: ...

@@ -140,11 +140,6 @@ class MavsdkLink(VehicleLink):
         except* _Stop:
             pass
 
-    def _valid(self, accepted: bool) -> bool:
-        if not accepted:
-            self.stats["invalid_telemetry"] += 1  # NaN, inf or impossible: the sample is ignored
-        return accepted
-
     def _seen(self) -> float:
         now = time.monotonic()
         self.state.wall_last = now

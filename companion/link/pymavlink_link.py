@@ -232,11 +232,6 @@ class PymavlinkLink(VehicleLink):
             if fut is not None and not fut.done():
                 fut.set_result(msg.param_value)
 
-    def _valid(self, accepted: bool) -> bool:
-        if not accepted:
-            self.stats["invalid_telemetry"] += 1  # NaN, inf or impossible: the sample is ignored
-        return accepted
-
     # --- connection ----------------------------------------------------------------------
 
     async def wait_connected(self, timeout_s: float) -> None:

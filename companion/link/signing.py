@@ -29,7 +29,7 @@ from typing import Any, Mapping
 
 __all__ = [
     "KEY_ENV", "SigningError", "SignatureCheck", "key_from_text", "read_key_file", "load_key", "fingerprint",
-    "signing_timestamp", "enable_signing", "write_key_file",
+    "signing_timestamp", "enable_signing", "write_key_file", "is_signed",
 ]
 
 KEY_ENV = "MAVLINK_SIGNING_KEY"
@@ -127,6 +127,11 @@ def enable_signing(mav: Any, key: bytes, link_id: int = 0) -> None:
     mav.signing.sign_outgoing = True
 
 
+def is_signed(msg: Any) -> bool:
+    """The decoded frame carries a MAVLink 2 signature (checked or not)."""
+    return bool(getattr(msg.get_header(), "incompat_flags", 0) & SIGNED_FLAG)
+
+
 @dataclass
 class SignatureCheck:
     """Accept a decoded frame only if it is signed with ``key`` and not a replay.
@@ -146,8 +151,7 @@ class SignatureCheck:
     def verdict(self, msg: Any) -> str | None:
         buf = bytes(msg.get_msgbuf())
         header = msg.get_header()
-        signed = bool(getattr(header, "incompat_flags", 0) & SIGNED_FLAG) and buf[:1] == b"\xfd"
-        if not signed:
+        if not (is_signed(msg) and buf[:1] == b"\xfd"):
             return None if msg.get_type() in self.allow_unsigned else "unsigned"
         if len(buf) < 12 + SIGNATURE_LEN:
             return "bad signature"

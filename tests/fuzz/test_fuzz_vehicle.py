@@ -20,11 +20,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from companion.control import quaternion as quat
-from sitl.autopilot import Autopilot, AutopilotParams, Mode
-from sitl.scenario import Scenario
+from sitl.autopilot import Autopilot, Mode
 from sitl.server import MAX_PEERS, MAX_REASONS, MavlinkServer, ServerConfig
-from sitl.vehicle import SimVehicle
+from tests.sitl.test_autopilot import airborne, make, run, stream
 
 from .strategies import FUZZ, datagram
 from .watchdog import no_hang
@@ -49,23 +47,12 @@ class _Wire:
 
 
 def _flying_autopilot() -> Autopilot:
-    v = SimVehicle(Scenario(name="fuzz"), "ism_do", 1, (0.0, 0.0, 0.0), 0.0, hovering=False)
-    ap = Autopilot(v, AutopilotParams())
-    run(ap, 1.2)
-    ap.command(400, (1,))
-    ap.command(22, (0, 0, 0, 0, math.nan, math.nan, math.nan))
-    run(ap, 4.0)
-    hover = 9.81 * v.scenario.vehicle.mass_kg / v.scenario.vehicle.thrust_max_n
-    for _ in range(60):
-        ap.attitude_target(255, 0, quat.from_yaw(0.0), (0.0, 0.0, 0.0), hover)
-        run(ap, 0.02)
+    """Hovering in OFFBOARD under system 255 (built once, copied for each example)."""
+    ap = make()
+    airborne(ap)
+    stream(ap, 1.2, sender=255)
     assert ap.set_mode(Mode.OFFBOARD, 255).result == 0
     return ap
-
-
-def run(ap: Autopilot, seconds: float) -> None:
-    for _ in range(int(round(seconds / ap.dt))):
-        ap.step()
 
 
 _BASE: list[Autopilot] = []

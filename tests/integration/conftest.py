@@ -26,6 +26,14 @@ def child_env(**extra: str) -> dict[str, str]:
     return env
 
 
+def _kill_left_over(procs: list) -> None:
+    """Fixture teardown: whatever a test left running is killed (a failed test must not leak processes)."""
+    for p in procs:
+        if p.proc.poll() is None:
+            p.proc.kill()
+            p.proc.wait()
+
+
 def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
@@ -82,10 +90,7 @@ def sitl():
         return p
 
     yield start
-    for p in procs:
-        if p.alive():
-            p.proc.kill()
-            p.proc.wait()
+    _kill_left_over(procs)
 
 
 class RelayProcess:
@@ -124,10 +129,7 @@ def relay():
         return p
 
     yield start
-    for p in procs:
-        if p.proc.poll() is None:
-            p.proc.kill()
-            p.proc.wait()
+    _kill_left_over(procs)
 
 
 class Client:
@@ -266,7 +268,4 @@ def companion(tmp_path):
         return p
 
     yield start
-    for p in procs:
-        if p.proc.poll() is None:
-            p.proc.kill()
-            p.proc.wait()
+    _kill_left_over(procs)
