@@ -193,9 +193,15 @@ class Flight:
             silent_wall = now - min(st.wall_pos, st.wall_att)
             stale = age > safety.telemetry_timeout_s and silent_wall > max(
                 safety.telemetry_timeout_s / max(self.link.clock.rate, 1e-3), MIN_SILENCE_S)
+            # behind: datagrams keep coming but wait in our own queue (this process starved of CPU);
+            # measured on our side of the socket, so a pausing vehicle cannot fake it
+            behind_s = self.link.rx_lag_s * self.link.clock.rate
+            if behind_s > safety.telemetry_timeout_s:
+                stale, age = True, max(age, behind_s)
             if stale and not self.stale:
                 self.outages += 1
-                self.log(f"telemetry stale ({age:.2f} s): setpoints paused")
+                why = "queued here" if behind_s > safety.telemetry_timeout_s else "stale"
+                self.log(f"telemetry {why} ({age:.2f} s): setpoints paused")
             elif self.stale and not stale:
                 self.stale_until_wall = now
                 self.log(f"telemetry back after {self.stale_for_s:.2f} s")
@@ -239,6 +245,7 @@ class Flight:
             t_prev = t_next
             tick = None
             if self.engaged and self.control is not None and state.has_navigation and not self.stale:
+                self.health.observe_age(t_next - min(state.t_pos, state.t_att))
                 tick = self.control.step(state, t_next, dt)
                 if tick.rejected is None:
                     self._setpoint = tick.setpoint
@@ -252,8 +259,9 @@ class Flight:
                               thrust.estimated_thrust_max_n if thrust else math.nan)
             stats = getattr(self.link, "stats", {})
             health = self.health.sample(t_next, stats.get("received", 0), self.sent, self.link.rx_queue_depth,
-                                        self.late_ticks)
+                                        self.late_ticks, self.link.rx_lag_max_s)
             if health is not None:
+                self.link.take_rx_lag_max()
                 self.recorder.health(health)
 
     async def _streamer(self) -> None:

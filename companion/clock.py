@@ -10,7 +10,8 @@ delay jitter straight into the control loop's tick times.
 
 Cost stays constant per packet however fast telemetry arrives: one sample is kept per 10 ms of
 wall time (the least delayed of that bin), the anchor is updated as packets come, and the rate
-is refitted at most ten times a second.
+is refitted at most ten times a second. After 50 ms without a sample the line is re-anchored on
+the next one: a paused (simulated) vehicle resumes behind the old line, a link outage on it.
 
 The control loop runs at a fixed rate *in vehicle time* by sleeping until :meth:`wall_at` its
 next tick, and takes its ``dt`` from vehicle time, so the controller works at any speed-up.
@@ -25,6 +26,8 @@ __all__ = ["VehicleClock"]
 
 BIN_S = 0.01
 REFIT_S = 0.1
+SILENCE_S = 0.05
+"""wall seconds without a timestamped sample after which the clock line is re-anchored"""
 
 
 class VehicleClock:
@@ -54,6 +57,11 @@ class VehicleClock:
         if self._newest is not None and vehicle_t <= self._newest[0]:
             return
         sample = (vehicle_t, wall_t)
+        if self._newest is not None and wall_t - self._newest[1] > SILENCE_S:
+            # after a silence the old line may be off: a simulated vehicle that paused (a stalled
+            # host) resumes behind it. Re-anchor on this sample; the rate stays until refitted.
+            self._samples.clear()
+            self._anchor = sample
         self._newest = sample
         s = self._samples
         if s and int(s[-1][1] / BIN_S) == int(wall_t / BIN_S):

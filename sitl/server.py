@@ -1,8 +1,9 @@
 """The simulated vehicle on the wire: MAVLink 2 over UDP, paced in real time or faster.
 
 One asyncio task steps the autopilot at the plant rate, keeping simulated time at
-``speedup`` times wall time (it falls back to slower than requested, and counts it, if the
-machine cannot keep up), and sends each telemetry stream when it is due in simulated time.
+``speedup`` times wall time (if the machine stalls it or cannot keep up, the simulated world
+pauses rather than racing to catch up, and the overrun is counted), and sends each telemetry
+stream when it is due in simulated time.
 Datagrams are handled between steps as they arrive: each is parsed on its own (a truncated
 packet cannot swallow the next one), every message is checked for its target, and anything
 malformed, oversized, mis-addressed or out of range is dropped and counted — never raised.
@@ -56,8 +57,10 @@ class ServerConfig:
     compid: int = 1
     origin: GeoOrigin = field(default_factory=GeoOrigin)
     rates_hz: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_RATES_HZ))
-    max_lag_s: float = 0.2
-    """wall-time lag beyond which the clock is re-based (the simulation then runs slower)"""
+    max_catchup_s: float = 0.02
+    """simulated seconds run back to back after the host delayed the loop; beyond that the time
+    is skipped (the world pauses), so a client never sees a burst of vehicle time its own loop
+    cannot follow (it would fly on stale telemetry through it)"""
     signing_key: bytes | None = None
     """MAVLink 2 signing: sign everything sent, and act only on frames signed with this key"""
 
@@ -450,6 +453,14 @@ class MavlinkServer:
                 due_wall = wall0 + (ap.t + dt - sim0) / speedup
                 if now >= due_wall:
                     lateness.append(now - due_wall)
+                behind = target - ap.t
+                if behind > self.config.max_catchup_s:
+                    # stalled (a busy host) or too slow for the speed-up: pause the world instead of
+                    # racing through it; counted, and the lost simulated time summed
+                    self.stats["overruns"] += 1
+                    self.stats["skipped_ms"] += round((behind - dt) * 1e3)
+                    wall0, sim0 = now - dt / speedup, ap.t
+                    target = ap.t + dt
                 steps = 0
                 while ap.t + 0.5 * dt <= target:
                     ap.step()
@@ -459,10 +470,6 @@ class MavlinkServer:
                         await asyncio.sleep(0)  # let datagrams in during long catch-ups
                 if self.ap.messages:
                     self._drain_messages()
-                lag = target - ap.t
-                if lag > self.config.max_lag_s * speedup:
-                    self.stats["overruns"] += 1  # cannot keep up: re-base the clock, run slower
-                    wall0, sim0 = time.monotonic(), ap.t
                 if now - last_expire > 1.0:
                     self._expire_peers()
                     last_expire = now

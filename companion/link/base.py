@@ -104,6 +104,15 @@ class VehicleLink(abc.ABC):
     async def __aexit__(self, *exc: object) -> None:
         await self.close()
 
+    rx_lag_s: float = 0.0
+    """wall seconds the last parsed datagram waited in our own queue (0 without one)"""
+    rx_lag_max_s: float = 0.0
+    """the longest such wait since :meth:`take_rx_lag_max` was last called"""
+
+    def take_rx_lag_max(self) -> float:
+        lag, self.rx_lag_max_s = self.rx_lag_max_s, 0.0
+        return lag
+
     @property
     def rx_queue_depth(self) -> int:
         """Datagrams received but not yet parsed (0 where the backend keeps no queue of ours)."""

@@ -85,3 +85,31 @@ def test_clock_is_not_fooled_by_transport_delay_jitter():
             worst = max(worst, abs(c.wall_at(target) - (true_wall + 0.010) - 0.0005))
     assert math.isclose(c.rate, 2.0, rel_tol=2e-3)
     assert worst < 0.0006, worst
+
+
+def test_clock_reanchors_when_a_paused_vehicle_resumes_behind_its_old_line():
+    """A simulated vehicle at 4x stalls for 0.2 s of wall time (its clock stops) and resumes
+    0.8 vehicle-seconds behind the old line. Without re-anchoring, the old anchor (least delayed
+    of the last second) would keep the clock 0.8 s ahead for up to a second, every sample would
+    look 0.8 s old, and the control loop would tick 0.8 s early."""
+    c = VehicleClock()
+    for k in range(300):  # 3 s at 100 Hz, 4x
+        c.observe(4.0 * 0.01 * k, 0.01 * k)
+    assert math.isclose(c.now(2.99), 4.0 * 2.99, abs_tol=1e-9)
+    t_v = 4.0 * 2.99
+    for k in range(1, 50):  # resumes at wall 3.19, same rate
+        w = 3.19 + 0.01 * k
+        t_v += 0.04
+        c.observe(t_v, w)
+        assert abs(c.age(t_v, w)) < 1e-9  # a fresh sample is fresh at once
+    assert math.isclose(c.rate, 4.0, rel_tol=1e-9)
+
+
+def test_clock_gap_from_a_link_outage_keeps_the_line():
+    """After a link outage the vehicle's clock has run on: re-anchoring on the first sample back
+    keeps the line (within that sample's delay, here 3 ms)."""
+    c = VehicleClock()
+    for k in range(300):
+        c.observe(10.0 + 0.01 * k, 0.01 * k)
+    c.observe(10.0 + 4.0, 4.0 + 0.003)  # 1 s outage, then a sample 3 ms late
+    assert abs(c.now(4.1) - (10.0 + 4.1)) < 0.004

@@ -68,7 +68,14 @@ def test_hover45_holds_position_at_45_degrees_and_does_not_overshoot_on_release(
     44.2 deg, required 45 +- 3 deg. Once the force observer (Gamma = 7 rad/s, 0.14 s) has the force,
     position is held: RMS < 3 cm over the last 12 s of the attachment. On release the vehicle is
     pushed back (as far as the onset pushed it, within 25%) and must not swing past its resting
-    point by more than 5% of that excursion (offline, E5: 0.3%)."""
+    point by more than 5% of that excursion (offline, E5: 0.3%).
+
+    Sped up 4x, a stall of this machine is four times as long in vehicle time: if the companion
+    is stalled for tau vehicle-seconds right after the release, the vehicle flies the last 45 deg
+    setpoint with nothing to balance it, accelerating at F/m = 9.5 m/s^2, and the excursion grows
+    by about (1/2 a tau^2 while stalled) + (1/2 a tau^2 braking that speed at a similar rate). That
+    allowance, a tau^2 with tau the longest setpoint gap measured in the companion's own record,
+    is added to the bound (1 mm without a stall; a 60 ms wall stall at 4x makes tau = 0.24 s)."""
     s = sitl(speedup=SPEEDUP)
     c = companion("missions/hover45.toml", s.url)
     code, out = c.finish()
@@ -86,7 +93,11 @@ def test_hover45_holds_position_at_45_degrees_and_does_not_overshoot_on_release(
     back = (d["x"] - d["x_ref"])[window(d, released)]
     excursion = back.min()
     rest = back[-200:].mean()
-    assert excursion < 0 and abs(abs(excursion) - onset.max()) < 0.25 * onset.max()
+    sent = window(d, released) & (d["t"] < released["t_start"] + 1.0) & (d["streaming"] == 1)
+    tau = max(0.0, float(np.diff(d["t"][sent]).max()) - 0.01)
+    allowance = 6.0 / 0.63 * tau**2
+    assert excursion < 0 and abs(abs(excursion) - onset.max()) < 0.25 * onset.max() + allowance, (
+        excursion, onset.max(), tau)
     k = int(np.argmin(back))
     assert back[k:].max() - rest < 0.05 * abs(excursion - rest), (back[k:].max(), rest, excursion)
 
