@@ -8,6 +8,7 @@ The mission repeats a cycle for ``--hours``: the 4 m square at 2 m/s, then a 45 
 wind with turbulence. The vehicle and the companion run as separate processes over UDP, as in a
 flight. Sampled every 5 s of wall time from /proc (Linux): each process's resident memory and
 CPU; every 10 s of vehicle time by the companion itself (its health.csv): receive-queue depth,
+the longest wait of a datagram in that queue, the oldest telemetry a control tick used,
 telemetry and setpoint rates, late ticks, the vehicle's achieved speed-up. Reported: memory at
 the start and end and its trend over the second half [MiB per simulated hour], CPU, the largest
 queue depth, the setpoint rate's mean, spread and trend [Hz per hour], tracking error per cycle
@@ -126,6 +127,10 @@ def main() -> int:
         "rss_trend_vehicle_mb_per_h": trend_per_hour(t_sim, s[:, 2]),
         "cpu_companion_pct": float(np.median(cpu_c)), "cpu_vehicle_pct": float(np.median(cpu_v)),
         "rx_queue_max": int(h["rx_queue"].max()),
+        "rx_lag_max_ms": float(h["rx_lag_max_ms"].max()),
+        "telemetry_age_max_ms": float(h["telemetry_age_max_ms"].max()),
+        "telemetry_age_p99_of_rows_ms": float(np.percentile(h["telemetry_age_max_ms"], 99)),
+        "vehicle_skipped_ms": report["stats"].get("skipped_ms", 0),
         "setpoint_hz": [float(rate.mean()), float(rate.min()), float(rate.max())],
         "setpoint_trend_hz_per_h": trend_per_hour(t_rate, rate),
         "late_ticks": int(h["late_ticks"][-1]), "vehicle_overruns": report["stats"].get("overruns", 0),
@@ -139,7 +144,11 @@ def main() -> int:
     print(f"{'trend, 2nd half [MiB / sim h]':<34}{res['rss_trend_companion_mb_per_h']:>12.2f}"
           f"{res['rss_trend_vehicle_mb_per_h']:>12.2f}")
     print(f"{'CPU, median [% of a core]':<34}{res['cpu_companion_pct']:>12.0f}{res['cpu_vehicle_pct']:>12.0f}")
-    print(f"receive queue depth, max: {res['rx_queue_max']} datagrams (of 2000)")
+    print(f"receive queue depth, max: {res['rx_queue_max']} datagrams (of 2000); longest wait in it "
+          f"{res['rx_lag_max_ms']:.1f} ms (wall)")
+    print(f"oldest telemetry a tick used: {res['telemetry_age_max_ms']:.0f} ms of vehicle time (99th percentile of "
+          f"10 s rows: {res['telemetry_age_p99_of_rows_ms']:.0f} ms); vehicle paused {res['vehicle_skipped_ms']} ms "
+          f"after host stalls")
     print(f"setpoint rate per vehicle second: mean {rate.mean():.2f} Hz, min {rate.min():.1f}, max {rate.max():.1f}; "
           f"trend {res['setpoint_trend_hz_per_h']:+.3f} Hz/h; late ticks {res['late_ticks']}; "
           f"vehicle overruns {res['vehicle_overruns']}")
@@ -171,7 +180,8 @@ def draw(path: str, t_sim, s, cpu_c, cpu_v, h, sq_t, sq_rms) -> None:  # type: i
     ax[1].legend(loc="lower right")
     ax[2].plot(h["t_s"] / 3600, h["setpoints_per_s"], label="setpoints [Hz of vehicle time]")
     ax[2].plot(h["t_s"] / 3600, h["rx_queue"], label="receive queue [datagrams]")
-    ax[2].set_ylabel("rate / depth")
+    ax[2].plot(h["t_s"] / 3600, h["telemetry_age_max_ms"], label="oldest telemetry used [vehicle ms]")
+    ax[2].set_ylabel("rate / depth / age")
     ax[2].legend(loc="center right")
     ax[3].plot(sq_t / 3600, 1000 * sq_rms, ".")
     ax[3].set_ylabel("square RMS error [mm]")

@@ -57,10 +57,11 @@ class ServerConfig:
     compid: int = 1
     origin: GeoOrigin = field(default_factory=GeoOrigin)
     rates_hz: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_RATES_HZ))
-    max_catchup_s: float = 0.02
-    """simulated seconds run back to back after the host delayed the loop; beyond that the time
-    is skipped (the world pauses), so a client never sees a burst of vehicle time its own loop
-    cannot follow (it would fly on stale telemetry through it)"""
+    max_catchup_wall_s: float = 0.05
+    """a delay of the loop (a busy host) up to this many wall seconds is caught up by stepping
+    back to back; a longer one is skipped (the world pauses), so a client never sees a burst of
+    vehicle time its loop cannot follow. It matches the companion's clock, which re-anchors after
+    50 ms of silence: a pause it does not see as one would look like telemetry turning old."""
     signing_key: bytes | None = None
     """MAVLink 2 signing: sign everything sent, and act only on frames signed with this key"""
 
@@ -454,7 +455,7 @@ class MavlinkServer:
                 if now >= due_wall:
                     lateness.append(now - due_wall)
                 behind = target - ap.t
-                if behind > self.config.max_catchup_s:
+                if behind > self.config.max_catchup_wall_s * speedup:
                     # stalled (a busy host) or too slow for the speed-up: pause the world instead of
                     # racing through it; counted, and the lost simulated time summed
                     self.stats["overruns"] += 1
