@@ -24,6 +24,7 @@ from typing import Any, Callable
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.link.signing import SignatureCheck, enable_signing, is_signed
+from companion.link.udp import UdpEndpoint
 from companion.link.wire import new_parser, parse_datagram
 
 from .autopilot import Autopilot, MavResult, Severity
@@ -70,17 +71,6 @@ UNSIGNED_ALLOWED = frozenset({"HEARTBEAT", "RADIO_STATUS"})
 """with signing on, what may arrive unsigned (it changes nothing, and teaches no peer address)"""
 
 
-class _Protocol(asyncio.DatagramProtocol):
-    def __init__(self, server: MavlinkServer) -> None:
-        self.server = server
-
-    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
-        self.server.datagram_received(data, addr)
-
-    def error_received(self, exc: Exception) -> None:  # e.g. ICMP port unreachable for a peer
-        self.server.stats["socket_errors"] += 1
-
-
 class MavlinkServer:
     """MAVLink endpoint of one :class:`Autopilot`; :meth:`run` until ``stop`` is set."""
 
@@ -103,7 +93,7 @@ class MavlinkServer:
             self.signature_check = SignatureCheck(cfg.signing_key, allow_unsigned=UNSIGNED_ALLOWED)
         self._signing_reported: set[str] = set()
         self.peers: dict[tuple[str, int], float] = {p: math.inf for p in cfg.peers}
-        self.transport: asyncio.DatagramTransport | None = None
+        self.transport: UdpEndpoint | None = None
         self.step_lateness_s: deque[float] = deque(maxlen=100_000)
         """wall-clock lateness of the latest loop passes, for the latency benchmark"""
         # ArduCopter sends only HEARTBEAT (and STATUSTEXT) until a client asks for streams
@@ -426,15 +416,17 @@ class MavlinkServer:
     # --- running -------------------------------------------------------------------------
 
     async def start(self) -> None:
-        loop = asyncio.get_running_loop()
-        transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(self), local_addr=self.config.listen)
-        self.transport = transport  # type: ignore[assignment]
+        endpoint = UdpEndpoint(self.datagram_received, self._socket_error)
+        endpoint.open(self.config.listen)
+        self.transport = endpoint
+
+    def _socket_error(self, exc: OSError) -> None:  # e.g. ICMP port unreachable for a peer
+        self.stats["socket_errors"] += 1
 
     @property
     def address(self) -> tuple[str, int]:
         assert self.transport is not None
-        host, port = self.transport.get_extra_info("sockname")[:2]
-        return host, port
+        return self.transport.sockname
 
     async def run(self, stop: asyncio.Event, duration_s: float | None = None) -> None:
         """Step in real time x ``speedup`` until ``stop`` is set (or ``duration_s`` simulated)."""

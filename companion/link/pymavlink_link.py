@@ -1,7 +1,8 @@
 """MAVLink on the wire with pymavlink, over asyncio UDP: PX4 and ArduPilot.
 
-Datagrams go from the socket callback into a bounded queue (full: dropped and counted, never
-grown) and are parsed by :meth:`PymavlinkLink.run`, one datagram at a time. Only messages from
+Datagrams go from the socket (every waiting one at each wake-up: :mod:`.udp`) into a bounded
+queue (full: dropped and counted, never grown) and are parsed by :meth:`PymavlinkLink.run`,
+everything queued at each wake-up. Only messages from
 the autopilot this link locked on to (the first autopilot heartbeat) update the state. Commands
 are sent as COMMAND_LONG and retried until their COMMAND_ACK arrives. Every datagram, in and
 out, is handed to the ``traffic`` hook for the flight's ``.tlog``.
@@ -28,6 +29,7 @@ from companion.state import VehicleState
 from .base import LinkError, TrafficHook, VehicleLink, parse_url
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
 from .signing import SignatureCheck, enable_signing, fingerprint
+from .udp import UdpEndpoint
 from .wire import new_parser, parse_datagram
 
 __all__ = ["PymavlinkLink"]
@@ -43,17 +45,6 @@ STREAM_RATES_HZ = {
     mavlink.MAVLINK_MSG_ID_HIGHRES_IMU: 100.0,
     mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 5.0,
 }
-
-
-class _Protocol(asyncio.DatagramProtocol):
-    def __init__(self, link: PymavlinkLink) -> None:
-        self.link = link
-
-    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
-        self.link._received(data, addr)
-
-    def error_received(self, exc: Exception) -> None:
-        self.link.stats["socket_errors"] += 1
 
 
 class PymavlinkLink(VehicleLink):
@@ -77,7 +68,7 @@ class PymavlinkLink(VehicleLink):
         self.command_retries = command_retries
         """5 tries: with 10% loss each way one try fails 19% of the time; 3 tries would still fail
         0.7% of commands, 5 tries 0.02%"""
-        self._transport: asyncio.DatagramTransport | None = None
+        self._transport: UdpEndpoint | None = None
         self._peer: tuple[str, int] | None = self.address if self.direction == "out" else None
         self._queue: asyncio.Queue[tuple[bytes, float]] = asyncio.Queue(maxsize=QUEUE_SIZE)
         self._acks: dict[int, asyncio.Future[int]] = {}
@@ -90,13 +81,13 @@ class PymavlinkLink(VehicleLink):
     # --- transport -------------------------------------------------------------------------
 
     async def open(self) -> None:
-        loop = asyncio.get_running_loop()
         local = self.address if self.direction == "in" else ("0.0.0.0", 0)
+        endpoint = UdpEndpoint(self._received, self._socket_error)
         try:
-            transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(self), local_addr=local)
+            endpoint.open(local)
         except OSError as exc:
             raise LinkError(f"cannot open UDP {local[0]}:{local[1]}: {exc.strerror or exc}") from None
-        self._transport = transport  # type: ignore[assignment]
+        self._transport = endpoint
         self._send(self.mav.heartbeat_encode(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID,
                                              0, 0, mavlink.MAV_STATE_ACTIVE))
 
@@ -121,6 +112,9 @@ class PymavlinkLink(VehicleLink):
     @property
     def rx_queue_depth(self) -> int:
         return self._queue.qsize()
+
+    def _socket_error(self, exc: OSError) -> None:
+        self.stats["socket_errors"] += 1
 
     def _received(self, data: bytes, addr: tuple[str, int]) -> None:
         self.stats["received"] += 1
