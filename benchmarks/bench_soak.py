@@ -134,6 +134,7 @@ def main() -> int:
         "setpoint_hz": [float(rate.mean()), float(rate.min()), float(rate.max())],
         "setpoint_trend_hz_per_h": trend_per_hour(t_rate, rate),
         "late_ticks": int(h["late_ticks"][-1]), "vehicle_overruns": report["stats"].get("overruns", 0),
+        "setpoint_age_ms": report.get("setpoint_age_ms", {}),
         "square_rms_m_first_hour": float(np.median(first)), "square_rms_m_last_hour": float(np.median(last)),
         "squares": len(squares),
     }
@@ -152,6 +153,11 @@ def main() -> int:
     print(f"setpoint rate per vehicle second: mean {rate.mean():.2f} Hz, min {rate.min():.1f}, max {rate.max():.1f}; "
           f"trend {res['setpoint_trend_hz_per_h']:+.3f} Hz/h; late ticks {res['late_ticks']}; "
           f"vehicle overruns {res['vehicle_overruns']}")
+    age = res["setpoint_age_ms"]
+    if age:
+        print(f"loop latency (telemetry stamp to setpoint at the vehicle) [vehicle ms]: last {age['n']}: p50 "
+              f"{age['p50']:.0f}, p99 {age['p99']:.0f}, max {age['max']:.0f}; largest in the flight "
+              f"{age['max_since_start']:.0f}")
     print(f"square RMS error, median: first hour {1000 * res['square_rms_m_first_hour']:.1f} mm, "
           f"last hour {1000 * res['square_rms_m_last_hour']:.1f} mm ({len(squares)} squares)")
     if args.json:

@@ -92,7 +92,7 @@ async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) ->
     report = {"t": round(server.ap.t, 3), "stats": dict(server.stats), "rejections": dict(server.rejections),
               "signing_rejections": dict(server.signing_rejections),
               "mode": server.ap.mode.name, "armed": server.ap.armed, "events": list(server.ap.events),
-              "loop_lateness_ms": server.lateness_ms()}
+              "loop_lateness_ms": server.lateness_ms(), "setpoint_age_ms": server.setpoint_age_ms()}
     print(f"sitl: stopped {json.dumps(report)}", flush=True)
 
 

@@ -96,6 +96,10 @@ class MavlinkServer:
         self.transport: UdpEndpoint | None = None
         self.step_lateness_s: deque[float] = deque(maxlen=100_000)
         """wall-clock lateness of the latest loop passes, for the latency benchmark"""
+        self.setpoint_age_s: deque[float] = deque(maxlen=100_000)
+        """vehicle seconds from a setpoint's telemetry stamp to its arrival, the latest ones"""
+        self.setpoint_age_max_s = 0.0
+        """the same, the largest since start"""
         # ArduCopter sends only HEARTBEAT (and STATUSTEXT) until a client asks for streams
         rates = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: 1.0} if ap.ardupilot else cfg.rates_hz
         self._intervals: dict[int, float] = {m: 1.0 / hz for m, hz in rates.items() if hz > 0}
@@ -320,6 +324,13 @@ class MavlinkServer:
         reason = self.ap.attitude_target(msg.get_srcSystem(), msg.type_mask, tuple(msg.q), rates, msg.thrust)
         if reason is not None:
             self._reject(f"attitude target: {reason}")
+            return
+        # the companion stamps a setpoint with the vehicle time of the telemetry it was computed
+        # from: its age here is the whole loop's latency (PX4 ignores the field; 0 = unstamped)
+        age = self.ap.t - msg.time_boot_ms * 1e-3
+        if msg.time_boot_ms and 0.0 <= age < 60.0:
+            self.setpoint_age_s.append(age)
+            self.setpoint_age_max_s = max(self.setpoint_age_max_s, age)
 
     def _set_position_target(self, msg: Any) -> None:
         if not self._for_us(msg):
@@ -407,11 +418,12 @@ class MavlinkServer:
 
     def lateness_ms(self) -> dict[str, float]:
         """Percentiles of how late (wall clock) the loop started steps that were due."""
-        xs = sorted(self.step_lateness_s)
-        if not xs:
-            return {}
-        pick = lambda f: round(1000.0 * xs[min(len(xs) - 1, int(f * len(xs)))], 3)  # noqa: E731
-        return {"p50": pick(0.5), "p99": pick(0.99), "max": round(1000.0 * xs[-1], 3), "n": len(xs)}
+        return _percentiles_ms(self.step_lateness_s)
+
+    def setpoint_age_ms(self) -> dict[str, float]:
+        """Percentiles of the age of stamped setpoints on arrival [vehicle ms] (the latest 100k), and
+        the largest since start."""
+        return _percentiles_ms(self.setpoint_age_s) | {"max_since_start": round(1000.0 * self.setpoint_age_max_s, 3)}
 
     # --- running -------------------------------------------------------------------------
 
@@ -472,6 +484,14 @@ class MavlinkServer:
             if self.transport is not None:
                 self.transport.close()
                 self.transport = None
+
+
+def _percentiles_ms(samples_s: deque[float]) -> dict[str, float]:
+    xs = sorted(samples_s)
+    if not xs:
+        return {}
+    pick = lambda f: round(1000.0 * xs[min(len(xs) - 1, int(f * len(xs)))], 3)  # noqa: E731
+    return {"p50": pick(0.5), "p99": pick(0.99), "max": round(1000.0 * xs[-1], 3), "n": len(xs)}
 
 
 def _bounded_key(table: dict[str, Any], key: str) -> str:
