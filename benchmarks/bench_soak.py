@@ -1,7 +1,7 @@
 """Soak: a long flight of the companion against the simulated vehicle, sped up, with memory, CPU,
 queues and loop rate sampled throughout.
 
-    python benchmarks/bench_soak.py                 # 2 h of simulated time at 5x (about 25 min)
+    python benchmarks/bench_soak.py                 # 2 h of simulated time at 4x (about 30 min)
     python benchmarks/bench_soak.py --hours 0.1     # a quick look
 
 The mission repeats a cycle for ``--hours``: the 4 m square at 2 m/s, then a 45 s hold, in 3 m/s
@@ -34,8 +34,8 @@ sys.path.insert(0, str(ROOT))
 from companion.demo import start_vehicle  # noqa: E402
 from companion.health import rss_mb  # noqa: E402
 
-CYCLE_S = 60.0
-"""one square (about 14 s with its 1 s holds) and a 45 s hold"""
+CYCLE_S = 75.0
+"""one square (about 30 s with its corner holds) and a 45 s hold"""
 TICK = os.sysconf("SC_CLK_TCK")
 
 
@@ -70,7 +70,7 @@ def trend_per_hour(t_s: np.ndarray, y: np.ndarray) -> float:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--hours", type=float, default=2.0, help="simulated hours")
-    ap.add_argument("--speedup", type=float, default=5.0)
+    ap.add_argument("--speedup", type=float, default=4.0)
     ap.add_argument("--figure", default=str(ROOT / "docs/figures/soak.png"))
     ap.add_argument("--json", help="also write the figures as JSON here")
     args = ap.parse_args()
