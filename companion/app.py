@@ -196,11 +196,12 @@ class Flight:
             # behind: datagrams keep coming but wait in our own queue (this process starved of CPU);
             # measured on our side of the socket, so a pausing vehicle cannot fake it
             behind_s = self.link.rx_lag_s * self.link.clock.rate
-            if behind_s > safety.telemetry_timeout_s:
+            behind = behind_s > safety.telemetry_timeout_s
+            if behind:
                 stale, age = True, max(age, behind_s)
             if stale and not self.stale:
                 self.outages += 1
-                why = "queued here" if behind_s > safety.telemetry_timeout_s else "stale"
+                why = "queued here" if behind else "stale"
                 self.log(f"telemetry {why} ({age:.2f} s): setpoints paused")
             elif self.stale and not stale:
                 self.stale_until_wall = now
@@ -257,8 +258,7 @@ class Flight:
             self.recorder.row(state, tick, tick is not None and tick.rejected is None,
                               thrust.thrust_max_n if thrust else math.nan,
                               thrust.estimated_thrust_max_n if thrust else math.nan)
-            stats = getattr(self.link, "stats", {})
-            health = self.health.sample(t_next, stats.get("received", 0), self.sent, self.link.rx_queue_depth,
+            health = self.health.sample(t_next, self.link.stats["received"], self.sent, self.link.rx_queue_depth,
                                         self.late_ticks, self.link.rx_lag_max_s)
             if health is not None:
                 self.link.take_rx_lag_max()

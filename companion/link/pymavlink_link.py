@@ -139,10 +139,9 @@ class PymavlinkLink(VehicleLink):
         queue = self._queue
         while not self._closed and not stop.is_set():
             try:
-                first = await asyncio.wait_for(queue.get(), timeout=0.2)
+                item: tuple[bytes, float] | None = await asyncio.wait_for(queue.get(), timeout=0.2)
             except TimeoutError:
-                first = None
-            item = first
+                item = None
             while item is not None:
                 data, arrived = item
                 if self.traffic is not None:
