@@ -80,6 +80,10 @@ class FlightResult:
 
 
 PRECISE_SLEEP_S = 0.0015
+RESYNC_TICKS = 5
+"""the control loop resyncs to the vehicle's clock when it is this many ticks off it"""
+STALLED_S = 0.05
+"""wall seconds a periodic task woke late by that mean this process was stalled"""
 MIN_SILENCE_S = 0.15
 """wall seconds of silence below which telemetry is never called stale (sped-up simulations)"""
 
@@ -176,10 +180,16 @@ class Flight:
     async def _watchdog(self) -> None:
         safety = self.mission.safety
         hold_requested = False
+        woke = time.monotonic()
         while not self.finished.is_set():
             await asyncio.sleep(0.02)
             st = self.link.state
-            now = time.monotonic()
+            now, due = time.monotonic(), woke + 0.02
+            woke = now
+            if now - due > STALLED_S:
+                # this process was stalled: what arrived meanwhile is still unread in the socket,
+                # so nothing can be judged old yet; the reader drains it before the next check
+                continue
             # from the first message on (wait_connected bounds the wait for the first one)
             if st.sysid and math.isfinite(st.wall_last) and now - st.wall_last > safety.link_lost_s:
                 raise LinkLost(f"vehicle link lost: no telemetry for {now - st.wall_last:.1f} s "
@@ -236,13 +246,19 @@ class Flight:
         t_prev = t_next - period
         while not self.finished.is_set():
             t_next += period
+            resynced = False
+            if clock.wall_at(t_next) - time.monotonic() > RESYNC_TICKS * period / clock.rate:
+                # the clock line moved back under us (re-anchored on a vehicle that paused)
+                t_next, resynced = clock.now(time.monotonic()) + period, True
             # block at most a quarter of a tick: sped up, a tick is only a few ms of wall time
             await _sleep_until(clock.wall_at(t_next), min(PRECISE_SLEEP_S, 0.25 * period / clock.rate))
             now_v = clock.now(time.monotonic())
-            if now_v - t_next > 5 * period:  # fell behind (a stalled vehicle or machine): resync
+            if now_v - t_next > RESYNC_TICKS * period:  # fell behind (a stalled vehicle or machine)
                 self.late_ticks += 1
-                t_next = now_v
-            dt = t_next - t_prev
+                t_next, resynced = now_v, True
+            # after a resync the controller integrates one tick, not the gap: an observer or integral
+            # stepped over a stall's worth of dt (Gamma * dt > 2) would diverge
+            dt = period if resynced else t_next - t_prev
             t_prev = t_next
             tick = None
             if self.engaged and self.control is not None and state.has_navigation and not self.stale:

@@ -12,6 +12,9 @@ Cost stays constant per packet however fast telemetry arrives: one sample is kep
 wall time (the least delayed of that bin), the anchor is updated as packets come, and the rate
 is refitted at most ten times a second. After 50 ms without a sample the line is re-anchored on
 the next one: a paused (simulated) vehicle resumes behind the old line, a link outage on it.
+A sample that repeats the newest stamp after such a silence says the vehicle's clock stood still
+(a simulated vehicle waiting for this process, see ``sitl --wait-for-setpoints``): the line is
+re-anchored on it, so the waiting is not mistaken for telemetry growing old.
 
 The control loop runs at a fixed rate *in vehicle time* by sleeping until :meth:`wall_at` its
 next tick, and takes its ``dt`` from vehicle time, so the controller works at any speed-up.
@@ -55,6 +58,10 @@ class VehicleClock:
             self._samples.clear()  # the vehicle restarted: its clock jumped back
             self._newest = self._anchor = None
         if self._newest is not None and vehicle_t <= self._newest[0]:
+            if vehicle_t == self._newest[0] and wall_t - self._newest[1] > SILENCE_S:
+                self._samples.clear()  # the vehicle's clock stood still: it is now, here
+                self._newest = self._anchor = (vehicle_t, wall_t)
+                self._samples.append(self._newest)
             return
         sample = (vehicle_t, wall_t)
         if self._newest is not None and wall_t - self._newest[1] > SILENCE_S:

@@ -234,6 +234,11 @@ class Autopilot:
     def ardupilot(self) -> bool:
         return self.params.flavour == "ardupilot"
 
+    @property
+    def follows_stream(self) -> bool:
+        """Flying a companion's setpoint stream: OFFBOARD, or GUIDED flying attitude targets."""
+        return self.mode == Mode.OFFBOARD or (self.mode == Mode.GUIDED and self._guided_flying)
+
     # --- events --------------------------------------------------------------------------
 
     def _say(self, severity: Severity, text: str) -> None:

@@ -68,7 +68,8 @@ def build(args: argparse.Namespace) -> MavlinkServer:
     ap = Autopilot(vehicle, AutopilotParams(strict_px4=args.flavour == "px4-strict",
                                             flavour="ardupilot" if args.flavour == "ardupilot" else "px4"))
     cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
-                       origin=args.origin, signing_key=signing_key(args, "sitl"))
+                       origin=args.origin, signing_key=signing_key(args, "sitl"),
+                       wait_for_setpoints_s=args.wait_for_setpoints)
     server = MavlinkServer(ap, cfg)
     for name, value in args.param:
         reason = server.params.set(name, value)
@@ -92,7 +93,8 @@ async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) ->
     report = {"t": round(server.ap.t, 3), "stats": dict(server.stats), "rejections": dict(server.rejections),
               "signing_rejections": dict(server.signing_rejections),
               "mode": server.ap.mode.name, "armed": server.ap.armed, "events": list(server.ap.events),
-              "loop_lateness_ms": server.lateness_ms(), "setpoint_age_ms": server.setpoint_age_ms()}
+              "loop_lateness_ms": server.lateness_ms(), "setpoint_age_ms": server.setpoint_age_ms(),
+              "longest_wait_ms": round(server.longest_wait_s * 1e3, 1)}
     print(f"sitl: stopped {json.dumps(report)}", flush=True)
 
 
@@ -114,12 +116,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sysid", type=int, default=1)
     ap.add_argument("--origin", type=parse_origin, default=GeoOrigin(), help="LAT,LON,ALT of the local origin")
+    ap.add_argument("--wait-for-setpoints", type=float, default=0.0, metavar="SECONDS",
+                    help="while flying a companion's stream, stop the simulated clock (up to 1 s of wall time) "
+                         "when the newest setpoint is older than SECONDS of simulated time: a stalled host "
+                         "then does not fly the vehicle without its companion (tests, soaks; 0: off)")
     ap.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
     add_signing_options(ap)
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
     if not 0.05 <= args.speedup <= 1000:
         ap.error("--speedup must be within 0.05..1000")
+    if not (args.wait_for_setpoints == 0 or 0.005 <= args.wait_for_setpoints <= 0.5):
+        ap.error("--wait-for-setpoints must be 0 (off) or within 0.005..0.5 s (below the 1 s offboard-loss timeout)")
     try:
         server = build(args)
     except (ConfigError, SigningError) as exc:

@@ -63,6 +63,19 @@ class ServerConfig:
     back to back; a longer one is skipped (the world pauses), so a client never sees a burst of
     vehicle time its loop cannot follow. It matches the companion's clock, which re-anchors after
     50 ms of silence: a pause it does not see as one would look like telemetry turning old."""
+    wait_for_setpoints_s: float = 0.0
+    """0: off. Otherwise, while the vehicle flies a companion's setpoint stream and the newest
+    setpoint is older than this many *simulated* seconds, the world waits (up to
+    ``max_wait_wall_s`` of wall time) and repeats its newest attitude and position every 20 ms of
+    wall time, clock stopped. A setpoint's age counts from the telemetry stamp it carries in
+    ``time_boot_ms`` (the companion's does; else from its arrival), so a companion that still sends
+    but is starved of CPU and acting on old telemetry is waited for too. A companion stalled by a
+    busy host (a process descheduled for 0.3 s is 1.2 simulated seconds at 4x) then finds the
+    world where it left it, instead of a vehicle that flew on without it. The simulator's
+    counterpart of PX4's lockstep; a real vehicle never waits, so tests of link outages leave it
+    off. Counted: ``setpoint_waits``, ``waited_ms``."""
+    max_wait_wall_s: float = 1.0
+    """after this long the stream is taken as gone, not late: time runs on (to the failsafe)"""
     signing_key: bytes | None = None
     """MAVLink 2 signing: sign everything sent, and act only on frames signed with this key"""
 
@@ -106,6 +119,13 @@ class MavlinkServer:
         self._due: dict[int, float] = {m: 0.0 for m in self._intervals}
         self._next_due = 0.0
         self._last_warning: dict[str, float] = {}
+        self._acted_on_t = -math.inf
+        """the newest setpoint's telemetry stamp (its arrival if unstamped) [simulated s]"""
+        self._wait_start: float | None = None
+        self._wait_repeat_due = 0.0
+        self._gave_up_waiting_on = math.nan
+        self.longest_wait_s = 0.0
+        """the longest the world waited for a setpoint [wall s]"""
         self._handlers: dict[str, Callable[[Any], None]] = {
             "COMMAND_LONG": self._command_long,
             "COMMAND_INT": self._command_int,
@@ -331,6 +351,9 @@ class MavlinkServer:
         if msg.time_boot_ms and 0.0 <= age < 60.0:
             self.setpoint_age_s.append(age)
             self.setpoint_age_max_s = max(self.setpoint_age_max_s, age)
+            self._acted_on_t = msg.time_boot_ms * 1e-3
+        else:
+            self._acted_on_t = self.ap.t
 
     def _set_position_target(self, msg: Any) -> None:
         if not self._for_us(msg):
@@ -454,6 +477,10 @@ class MavlinkServer:
                 if duration_s is not None and ap.t >= duration_s:
                     break
                 now = time.monotonic()
+                if self._waiting_for_setpoints(now):
+                    wall0, sim0 = now - dt / speedup, ap.t  # resume from here, with no catching up
+                    await asyncio.sleep(0.001)
+                    continue
                 target = sim0 + (now - wall0) * speedup
                 due_wall = wall0 + (ap.t + dt - sim0) / speedup
                 if now >= due_wall:
@@ -484,6 +511,40 @@ class MavlinkServer:
             if self.transport is not None:
                 self.transport.close()
                 self.transport = None
+
+
+    def _waiting_for_setpoints(self, now: float) -> bool:
+        """True while the world waits for a late setpoint (see ``ServerConfig.wait_for_setpoints_s``)."""
+        ap, cfg = self.ap, self.config
+        late = (cfg.wait_for_setpoints_s > 0 and ap.follows_stream
+                and ap.t - self._acted_on_t > cfg.wait_for_setpoints_s
+                and self._acted_on_t != self._gave_up_waiting_on)
+        if late and self._wait_start is None:
+            self._wait_start, self._wait_repeat_due = now, now
+            self.stats["setpoint_waits"] += 1
+        if late and now - self._wait_start > cfg.max_wait_wall_s:  # type: ignore[operator]
+            self._gave_up_waiting_on = self._acted_on_t  # gone, not late: time runs on
+            late = False
+        if late:
+            if now >= self._wait_repeat_due:
+                self._wait_repeat_due = now + 0.02
+                self._repeat_state()
+            return True
+        if self._wait_start is not None:
+            waited = now - self._wait_start
+            self._wait_start = None
+            self.stats["waited_ms"] += round(waited * 1e3)
+            self.longest_wait_s = max(self.longest_wait_s, waited)
+        return False
+
+    def _repeat_state(self) -> None:
+        """While waiting: the newest attitude and position again, same stamp (the clock stood still)."""
+        enc = self.telemetry.encoders
+        for msg_id in (mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED):
+            if msg_id in self._intervals:
+                msg = enc[msg_id]()
+                if msg is not None:
+                    self.send(msg)
 
 
 def _percentiles_ms(samples_s: deque[float]) -> dict[str, float]:

@@ -113,3 +113,19 @@ def test_clock_gap_from_a_link_outage_keeps_the_line():
         c.observe(10.0 + 0.01 * k, 0.01 * k)
     c.observe(10.0 + 4.0, 4.0 + 0.003)  # 1 s outage, then a sample 3 ms late
     assert abs(c.now(4.1) - (10.0 + 4.1)) < 0.004
+
+
+def test_clock_reanchors_on_a_repeated_stamp_from_a_vehicle_that_waited():
+    """A simulated vehicle at 4x waits for this process (stalled 0.3 s of wall time) with its
+    clock stopped at 12.0 s, repeating its last telemetry. The repeat re-anchors the line: the
+    stamp is fresh again rather than 1.2 vehicle-seconds old, and the rate is kept."""
+    c = VehicleClock()
+    for k in range(301):
+        c.observe(4.0 * 0.01 * k, 0.01 * k)  # up to vehicle 12.0 s at wall 3.0 s
+    assert math.isclose(c.age(12.0, 3.3), 1.2, abs_tol=1e-9)  # extrapolated: looks 1.2 s old
+    c.observe(12.0, 3.3)  # the repeat, after 0.3 s of silence
+    assert abs(c.age(12.0, 3.3)) < 1e-9
+    c.observe(12.0, 3.31)  # repeats within 50 ms change nothing
+    assert math.isclose(c.age(12.0, 3.31), 0.04, abs_tol=1e-9)
+    c.observe(12.04, 3.31)  # the vehicle runs on from there
+    assert math.isclose(c.rate, 4.0, rel_tol=1e-9) and abs(c.age(12.04, 3.31)) < 1e-9

@@ -125,10 +125,12 @@ def test_waypoints_and_hover45_under_loss_and_delay(sitl, relay, companion, reco
     """Both missions in real time (the delay is wall time), one after the other (six processes at
     once would measure this 2-core host's contention, not the link), each through its own relay:
     10% loss and 20 +- 10 ms delay in each direction, seeded. Loss counts are binomial (p = 0.1;
-    +-5 sd accepted), so the impairment demonstrably happened."""
+    +-5 sd accepted), so the impairment demonstrably happened. The vehicle waits for setpoints more
+    than 0.1 s late (a stalled process on this host; the impairment alone never delays the 100 Hz
+    stream that long: 30 ms of jitter, and 10 losses in a row at p = 1e-10)."""
     results = {}
     for name, seed in (("waypoints", "1"), ("hover45", "2")):
-        s = sitl(speedup=1.0)
+        s = sitl("--wait-for-setpoints", "0.1", speedup=1.0)
         r = relay(s.url, *IMPAIRED, "--seed", seed)
         c = companion(f"missions/{name}.toml", r.url)
         code, out = c.finish(timeout=180)

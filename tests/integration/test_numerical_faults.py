@@ -45,7 +45,7 @@ def test_a_30_percent_heavier_vehicle_and_a_weak_motor_are_ridden_out(sitl, comp
       4 deg for ~0.1 s, i.e. about 2.5 cm of drift: 0.15 m.
     Afterwards the loop is back on its reference: RMS over each hold's last 6 s under the clean
     hold bound of 3 cm (test_companion_e2e)."""
-    s = sitl(speedup=SPEEDUP)
+    s = sitl("--wait-for-setpoints", "0.05", speedup=SPEEDUP)
     c = companion(mission(tmp_path, ("heavier", "SIM_MASS_FAC", 1.3, 12.0), ("weak motor", "SIM_MOT1_EFF", 0.7, 12.0)),
                   s.url)
     code, out = c.finish()
@@ -77,7 +77,7 @@ def test_a_failed_sensor_is_declared_and_the_vehicle_lands(sitl, companion, tmp_
     """The vehicle must say what failed within the stated time (vehicle clock), land and disarm
     without leaving the hover point by more than 0.5 m horizontally; the companion must stop
     (it does not fight a failsafe) rather than re-take control."""
-    s = sitl(speedup=SPEEDUP)
+    s = sitl("--wait-for-setpoints", "0.05", speedup=SPEEDUP)
     obs = Observer(s.url)
     c = companion(mission(tmp_path, ("fault", param, seconds, 20.0)), s.url)
     code, out = c.finish()

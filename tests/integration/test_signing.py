@@ -104,7 +104,7 @@ def test_signed_flight_completes_while_unsigned_forged_replayed_and_foreign_send
     frame in flight at shutdown) — and each reason is reported once, not per frame."""
     key_file = tmp_path / "mavlink.key"
     key = write_key_file(key_file)
-    s = sitl("--signing-key-file", str(key_file), speedup=ATTACK_SPEEDUP)
+    s = sitl("--signing-key-file", str(key_file), "--wait-for-setpoints", "0.05", speedup=ATTACK_SPEEDUP)
     assert any("signing on" in line for line in s.banner)
     observer = Observer(s.url, signing_key=key)
     c = companion("missions/waypoints.toml", s.url, env={"MAVLINK_SIGNING_KEY": key.hex()})
