@@ -6,7 +6,8 @@ queues and loop rate sampled throughout.
 
 The mission repeats a cycle for ``--hours``: the 4 m square at 2 m/s, then a 45 s hold, in 3 m/s
 wind with turbulence. The vehicle and the companion run as separate processes over UDP, as in a
-flight. Sampled every 5 s of wall time from /proc (Linux): each process's resident memory and
+flight; the vehicle waits for a companion stalled by the host (``--wait-for-setpoints``, counted).
+Sampled every 5 s of wall time from /proc (Linux): each process's resident memory and
 CPU; every 10 s of vehicle time by the companion itself (its health.csv): receive-queue depth,
 the longest wait of a datagram in that queue, the oldest telemetry a control tick used,
 telemetry and setpoint rates, late ticks, the vehicle's achieved speed-up. Reported: memory at
@@ -73,12 +74,15 @@ def main() -> int:
     ap.add_argument("--speedup", type=float, default=4.0)
     ap.add_argument("--figure", default=str(ROOT / "docs/figures/soak.png"))
     ap.add_argument("--json", help="also write the figures as JSON here")
+    ap.add_argument("--wait-for-setpoints", type=float, default=0.05, metavar="SECONDS",
+                    help="the vehicle waits for a companion this far behind (sitl --help; 0: never)")
     args = ap.parse_args()
 
     work = Path(tempfile.mkdtemp(prefix="soak-"))
     mission = work / "soak.toml"
     mission.write_text(soak_mission(args.hours))
-    vehicle, port = start_vehicle(args.speedup, "--param", "SIM_WIND_N=3", "--param", "SIM_TURB_SIGMA=0.6")
+    vehicle, port = start_vehicle(args.speedup, "--param", "SIM_WIND_N=3", "--param", "SIM_TURB_SIGMA=0.6",
+                                  "--wait-for-setpoints", str(args.wait_for_setpoints))
     comp = subprocess.Popen([sys.executable, "-m", "companion", "fly", str(mission), "--connect",
                              f"udp://127.0.0.1:{port}", "--out", str(work), "--no-plots", "--quiet"],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -134,6 +138,8 @@ def main() -> int:
         "setpoint_hz": [float(rate.mean()), float(rate.min()), float(rate.max())],
         "setpoint_trend_hz_per_h": trend_per_hour(t_rate, rate),
         "late_ticks": int(h["late_ticks"][-1]), "vehicle_overruns": report["stats"].get("overruns", 0),
+        "vehicle_waits": report["stats"].get("setpoint_waits", 0), "vehicle_waited_ms": report["stats"].get(
+            "waited_ms", 0), "vehicle_longest_wait_ms": report.get("longest_wait_ms", 0.0),
         "setpoint_age_ms": report.get("setpoint_age_ms", {}),
         "square_rms_m_first_hour": float(np.median(first)), "square_rms_m_last_hour": float(np.median(last)),
         "squares": len(squares),
@@ -153,6 +159,8 @@ def main() -> int:
     print(f"setpoint rate per vehicle second: mean {rate.mean():.2f} Hz, min {rate.min():.1f}, max {rate.max():.1f}; "
           f"trend {res['setpoint_trend_hz_per_h']:+.3f} Hz/h; late ticks {res['late_ticks']}; "
           f"vehicle overruns {res['vehicle_overruns']}")
+    print(f"the vehicle waited for the companion {res['vehicle_waits']} times, {res['vehicle_waited_ms'] / 1e3:.1f} s "
+          f"of wall time in all, longest {res['vehicle_longest_wait_ms']:.0f} ms")
     age = res["setpoint_age_ms"]
     if age:
         print(f"loop latency (telemetry stamp to setpoint at the vehicle) [vehicle ms]: last {age['n']}: p50 "

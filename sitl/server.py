@@ -498,6 +498,8 @@ class MavlinkServer:
                     ap.step()
                     self._telemetry_tick()
                     steps += 1
+                    if self._setpoint_late():
+                        break  # catching up, too: never more than the wait ahead of the companion
                     if steps % 50 == 0:
                         await asyncio.sleep(0)  # let datagrams in during long catch-ups
                 if self.ap.messages:
@@ -513,12 +515,14 @@ class MavlinkServer:
                 self.transport = None
 
 
+    def _setpoint_late(self) -> bool:
+        ap, wait_s = self.ap, self.config.wait_for_setpoints_s
+        return (wait_s > 0 and ap.follows_stream and ap.t - self._acted_on_t > wait_s
+                and self._acted_on_t != self._gave_up_waiting_on)
+
     def _waiting_for_setpoints(self, now: float) -> bool:
         """True while the world waits for a late setpoint (see ``ServerConfig.wait_for_setpoints_s``)."""
-        ap, cfg = self.ap, self.config
-        late = (cfg.wait_for_setpoints_s > 0 and ap.follows_stream
-                and ap.t - self._acted_on_t > cfg.wait_for_setpoints_s
-                and self._acted_on_t != self._gave_up_waiting_on)
+        late, cfg = self._setpoint_late(), self.config
         if late and self._wait_start is None:
             self._wait_start, self._wait_repeat_due = now, now
             self.stats["setpoint_waits"] += 1
