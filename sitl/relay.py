@@ -15,7 +15,10 @@ Per datagram and direction, in this order: an outage drops it; it is lost with p
 exceeds their spacing); with probability ``reorder`` it is held ``reorder_ms`` longer still;
 with probability ``duplicate`` a second copy follows ``duplicate_gap_ms`` later. Every draw comes
 from one seeded generator per direction, so the same seed and the same traffic give the same
-impairment. On SIGTERM/SIGINT the relay prints ``relay: stopped {json}`` with its counters.
+impairment. A datagram's delay counts from its arrival in the kernel (SO_TIMESTAMPNS on Linux),
+so time the relay itself spent descheduled before reading it is not added; time it spent
+descheduled past a delivery's due time is, and is reported (``late_ms``: p50, p99, max). On
+SIGTERM/SIGINT the relay prints ``relay: stopped {json}`` with its counters.
 """
 
 from __future__ import annotations
@@ -28,14 +31,18 @@ import random
 import selectors
 import signal
 import socket
+import struct
 import sys
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Sequence
 
 __all__ = ["Impairment", "Outage", "Relay", "main"]
 
 MAX_DATAGRAM = 65535
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if sys.platform.startswith("linux") else None)
+"""kernel receive stamps as a struct timespec (Linux's value; Python's socket module may lack the name)"""
 
 
 @dataclass(frozen=True)
@@ -92,6 +99,10 @@ class Relay:
         self.vehicle_side.bind((listen[0], 0))
         for s in (self.client_side, self.vehicle_side):
             s.setblocking(False)
+            if SO_TIMESTAMPNS is not None:
+                s.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+        self.late_s: deque[float] = deque(maxlen=100_000)
+        """how late past its due time each of the latest deliveries went out [s]"""
         self.up = _Direction("up", up, random.Random(f"{seed}:up"))
         self.down = _Direction("down", down, random.Random(f"{seed}:down"))
         self.outages: list[Outage] = list(outages)
@@ -147,7 +158,8 @@ class Relay:
     def _deliver(self, now: float) -> None:
         q = self._queue
         while q and q[0][0] <= now:
-            _, _, upward, data = heapq.heappop(q)
+            due, _, upward, data = heapq.heappop(q)
+            self.late_s.append(now - due)
             try:
                 if upward:
                     self.vehicle_side.sendto(data, self.to)
@@ -161,14 +173,14 @@ class Relay:
     def _read(self, sock: socket.socket, upward: bool, now: float) -> None:
         for _ in range(256):  # bounded: one busy side cannot starve the other
             try:
-                data, addr = sock.recvfrom(MAX_DATAGRAM)
+                data, anc, _, addr = sock.recvmsg(MAX_DATAGRAM, 64)
             except (BlockingIOError, InterruptedError):
                 return
             except OSError:
                 continue
             if upward:
                 self.client = addr
-            self._schedule(self.up if upward else self.down, data, now)
+            self._schedule(self.up if upward else self.down, data, _arrival(anc, now))
 
     def run(self) -> None:
         sel = selectors.DefaultSelector()
@@ -187,9 +199,21 @@ class Relay:
             self.vehicle_side.close()
 
     def report(self) -> dict:
+        late = sorted(self.late_s)
+        pick = lambda f: round(1000.0 * late[min(len(late) - 1, int(f * len(late)))], 3) if late else 0.0  # noqa: E731
         return {"up": self.up.counts, "down": self.down.counts, "max_queue": self.max_queue,
+                "late_ms": {"p50": pick(0.5), "p99": pick(0.99), "max": pick(1.0)},
                 "outages": [dataclasses.asdict(o) for o in self.outages],
                 "impairment": {"up": dataclasses.asdict(self.up.imp), "down": dataclasses.asdict(self.down.imp)}}
+
+
+def _arrival(ancillary: list[tuple[int, int, bytes]], now: float) -> float:
+    """The kernel's arrival stamp (wall clock) on the monotonic clock; ``now`` without one."""
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:
+            sec, nsec = struct.unpack("qq", data[:16])
+            return min(now, now - (time.time() - (sec + nsec * 1e-9)))
+    return now
 
 
 def _address(text: str) -> tuple[str, int]:
