@@ -100,8 +100,9 @@ def test_offboard_attitude_flight_with_quaternion_rates_and_thrust(sitl, client)
 
 
 def test_timestamps_are_simulated_time_at_any_speed(sitl, client):
-    """At 4x, 2 s of wall time carry ~8 s of simulated time in time_boot_ms (the ratio is at most
-    the speed-up; the test allows for a slow machine down to half of it)."""
+    """At 4x, 2 s of wall time carry ~8 s of simulated time in time_boot_ms: never more than the
+    speed-up, and whatever is missing is simulated time the vehicle reports it skipped (paused
+    while this host stalled it: docs/sitl.md, Time), so that the two add up to at least 3.6x."""
     s = sitl(speedup=4.0)
     c = client(s.url)
     first = c.wait("ATTITUDE_QUATERNION")
@@ -111,8 +112,10 @@ def test_timestamps_are_simulated_time_at_any_speed(sitl, client):
     while (msg := c.recv(0.01)) is not None:
         if msg.get_type() == "ATTITUDE_QUATERNION":
             last = msg
-    ratio = (last.time_boot_ms - first.time_boot_ms) / 1000.0 / (time.monotonic() - w0)
-    assert 2.0 < ratio <= 4.3, ratio
+    wall = time.monotonic() - w0
+    simulated = (last.time_boot_ms - first.time_boot_ms) / 1000.0
+    skipped = s.stop()["stats"].get("skipped_ms", 0) / 1000.0
+    assert simulated / wall <= 4.3 and (simulated + skipped) / wall >= 3.6, (simulated, skipped, wall)
 
 
 def test_offboard_is_refused_without_a_setpoint_stream(sitl, client):
