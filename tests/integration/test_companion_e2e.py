@@ -124,8 +124,10 @@ def test_killing_the_vehicle_mid_flight_ends_the_companion_with_a_clear_error(si
 
 def test_killing_the_companion_lets_the_vehicle_failsafe_land(sitl, companion, client):
     """The companion dies (SIGKILL, no goodbye) while flying offboard: within COM_OF_LOSS_T = 1 s
-    the vehicle holds, after COM_FAIL_ACT_T = 5 s more it lands, and it disarms on the ground."""
-    s = sitl(speedup=SPEEDUP)
+    the vehicle holds, after COM_FAIL_ACT_T = 5 s more it lands, and it disarms on the ground.
+    The vehicle waits for setpoints (WAIT) up to 1 s of wall time, then takes the stream as gone:
+    a dead companion delays the failsafe by that second of wall time, and by no simulated time."""
+    s = sitl(*WAIT, speedup=SPEEDUP)
     c = companion("missions/hover45.toml", s.url)
     c.wait_for("step hover")
     obs = client(s.url, source_system=200)
@@ -136,7 +138,8 @@ def test_killing_the_companion_lets_the_vehicle_failsafe_land(sitl, companion, c
     obs.wait("HEARTBEAT", lambda h: not h.base_mode & 128, timeout=30)  # disarmed
     assert "offboard lost" in obs.text("offboard lost")
     report = s.stop()
-    assert not report["armed"]
+    assert not report["armed"] and report["stats"]["setpoint_waits"] >= 1
+    assert report["longest_wait_ms"] < 1100, report
 
 
 def test_sigint_holds_then_lands_and_disarms(sitl, companion):
@@ -227,8 +230,9 @@ def test_ardupilot_flavour_guided_throttle_and_lean_angle(sitl, companion, clien
 
 def test_ardupilot_dead_companion_leaves_the_vehicle_holding_after_guid_timeout(sitl, companion, client):
     """ArduCopter has no offboard-loss failsafe: it flies the last target for GUID_TIMEOUT (3 s),
-    then levels and holds in GUIDED (MAVLINK.md). The simulated vehicle does the same."""
-    s = sitl("--flavour", "ardupilot", speedup=SPEEDUP)
+    then levels and holds in GUIDED (MAVLINK.md). The simulated vehicle does the same (after
+    waiting 1 s of wall time for the dead companion, WAIT)."""
+    s = sitl("--flavour", "ardupilot", *WAIT, speedup=SPEEDUP)
     c = companion("missions/hover45.toml", s.url)
     c.wait_for("step hover")
     c.proc.kill()
