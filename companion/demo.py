@@ -52,7 +52,9 @@ def run_demo(out_dir: Path = Path("flights"), speedup: float = 4.0, controller: 
     status = 0
     for name in ("hover45", "waypoints"):
         mission = load_mission(MISSIONS_DIR / f"{name}.toml")
-        proc, port = start_vehicle(speedup)
+        # the vehicle waits for this process if the machine stalls it (sitl --wait-for-setpoints):
+        # sped up 4x, a 0.3 s stall would otherwise be 1.2 s without setpoints and a failsafe
+        proc, port = start_vehicle(speedup, "--wait-for-setpoints", "0.05")
         try:
             print(f"\n=== {name}: simulated vehicle on udp://127.0.0.1:{port}, {speedup:g}x ===", flush=True)
             t0 = time.monotonic()
