@@ -19,6 +19,7 @@ queue depth, the setpoint rate's mean, spread and trend [Hz per hour], tracking 
 from __future__ import annotations
 
 import argparse
+import math
 import csv
 import json
 import os
@@ -41,7 +42,7 @@ TICK = os.sysconf("SC_CLK_TCK")
 
 
 def soak_mission(hours: float) -> str:
-    cycles = max(1, round(hours * 3600 / CYCLE_S))
+    cycles = max(1, math.ceil(hours * 3600 / CYCLE_S) + 1)  # one more: a cycle is ~75 s, not exactly
     steps = ['[[steps]]\naction = "takeoff"\naltitude_m = 1.5\n', '[[steps]]\naction = "offboard"\n']
     for i in range(cycles):
         steps.append(f'[[steps]]\nname = "square {i}"\naction = "goto"\n'
