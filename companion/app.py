@@ -247,11 +247,13 @@ class Flight:
         while not self.finished.is_set():
             t_next += period
             resynced = False
-            if clock.wall_at(t_next) - time.monotonic() > RESYNC_TICKS * period / clock.rate:
+            wake, now = clock.wall_at(t_next), time.monotonic()
+            if wake - now > RESYNC_TICKS * period / clock.rate:
                 # the clock line moved back under us (re-anchored on a vehicle that paused)
-                t_next, resynced = clock.now(time.monotonic()) + period, True
+                t_next, resynced = clock.now(now) + period, True
+                wake = clock.wall_at(t_next)
             # block at most a quarter of a tick: sped up, a tick is only a few ms of wall time
-            await _sleep_until(clock.wall_at(t_next), min(PRECISE_SLEEP_S, 0.25 * period / clock.rate))
+            await _sleep_until(wake, min(PRECISE_SLEEP_S, 0.25 * period / clock.rate))
             now_v = clock.now(time.monotonic())
             if now_v - t_next > RESYNC_TICKS * period:  # fell behind (a stalled vehicle or machine)
                 self.late_ticks += 1

@@ -38,7 +38,9 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Sequence
 
-__all__ = ["Impairment", "Outage", "Relay", "main"]
+from .percentiles import percentiles_ms
+
+__all__ = ["Impairment", "Outage", "Relay", "SO_TIMESTAMPNS", "kernel_arrival", "main"]
 
 MAX_DATAGRAM = 65535
 SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if sys.platform.startswith("linux") else None)
@@ -180,7 +182,7 @@ class Relay:
                 continue
             if upward:
                 self.client = addr
-            self._schedule(self.up if upward else self.down, data, _arrival(anc, now))
+            self._schedule(self.up if upward else self.down, data, kernel_arrival(anc, now))
 
     def run(self) -> None:
         sel = selectors.DefaultSelector()
@@ -199,15 +201,13 @@ class Relay:
             self.vehicle_side.close()
 
     def report(self) -> dict:
-        late = sorted(self.late_s)
-        pick = lambda f: round(1000.0 * late[min(len(late) - 1, int(f * len(late)))], 3) if late else 0.0  # noqa: E731
         return {"up": self.up.counts, "down": self.down.counts, "max_queue": self.max_queue,
-                "late_ms": {"p50": pick(0.5), "p99": pick(0.99), "max": pick(1.0)},
+                "late_ms": percentiles_ms(self.late_s) or {"p50": 0.0, "p99": 0.0, "max": 0.0, "n": 0},
                 "outages": [dataclasses.asdict(o) for o in self.outages],
                 "impairment": {"up": dataclasses.asdict(self.up.imp), "down": dataclasses.asdict(self.down.imp)}}
 
 
-def _arrival(ancillary: list[tuple[int, int, bytes]], now: float) -> float:
+def kernel_arrival(ancillary: list[tuple[int, int, bytes]], now: float) -> float:
     """The kernel's arrival stamp (wall clock) on the monotonic clock; ``now`` without one."""
     for level, kind, data in ancillary:
         if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:

@@ -29,6 +29,7 @@ from companion.link.wire import new_parser, parse_datagram
 
 from .autopilot import Autopilot, MavResult, Severity
 from .parameters import ParamTable, build_parameters
+from .percentiles import percentiles_ms
 from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
 
 __all__ = ["ServerConfig", "MavlinkServer"]
@@ -345,13 +346,17 @@ class MavlinkServer:
         if reason is not None:
             self._reject(f"attitude target: {reason}")
             return
-        # the companion stamps a setpoint with the vehicle time of the telemetry it was computed
-        # from: its age here is the whole loop's latency (PX4 ignores the field; 0 = unstamped)
-        age = self.ap.t - msg.time_boot_ms * 1e-3
-        if msg.time_boot_ms and 0.0 <= age < 60.0:
+        self._setpoint_accepted(msg.time_boot_ms)
+
+    def _setpoint_accepted(self, time_boot_ms: int) -> None:
+        """The companion stamps a setpoint with the vehicle time of the telemetry it was computed
+        from: its age here is the whole loop's latency (PX4 ignores the field; 0 = unstamped), and
+        what ``wait_for_setpoints_s`` measures (from arrival when unstamped)."""
+        age = self.ap.t - time_boot_ms * 1e-3
+        if time_boot_ms and 0.0 <= age < 60.0:
             self.setpoint_age_s.append(age)
             self.setpoint_age_max_s = max(self.setpoint_age_max_s, age)
-            self._acted_on_t = msg.time_boot_ms * 1e-3
+            self._acted_on_t = time_boot_ms * 1e-3
         else:
             self._acted_on_t = self.ap.t
 
@@ -367,6 +372,8 @@ class MavlinkServer:
         reason = self.ap.position_target(msg.get_srcSystem(), (msg.x, msg.y, msg.z), yaw)
         if reason is not None:
             self._reject(f"position target: {reason}")
+            return
+        self._setpoint_accepted(msg.time_boot_ms)
 
     # --- parameters ----------------------------------------------------------------------
 
@@ -441,12 +448,12 @@ class MavlinkServer:
 
     def lateness_ms(self) -> dict[str, float]:
         """Percentiles of how late (wall clock) the loop started steps that were due."""
-        return _percentiles_ms(self.step_lateness_s)
+        return percentiles_ms(self.step_lateness_s)
 
     def setpoint_age_ms(self) -> dict[str, float]:
         """Percentiles of the age of stamped setpoints on arrival [vehicle ms] (the latest 100k), and
         the largest since start."""
-        return _percentiles_ms(self.setpoint_age_s) | {"max_since_start": round(1000.0 * self.setpoint_age_max_s, 3)}
+        return percentiles_ms(self.setpoint_age_s) | {"max_since_start": round(1000.0 * self.setpoint_age_max_s, 3)}
 
     # --- running -------------------------------------------------------------------------
 
@@ -522,11 +529,11 @@ class MavlinkServer:
 
     def _waiting_for_setpoints(self, now: float) -> bool:
         """True while the world waits for a late setpoint (see ``ServerConfig.wait_for_setpoints_s``)."""
-        late, cfg = self._setpoint_late(), self.config
+        late = self._setpoint_late()
         if late and self._wait_start is None:
             self._wait_start, self._wait_repeat_due = now, now
             self.stats["setpoint_waits"] += 1
-        if late and now - self._wait_start > cfg.max_wait_wall_s:  # type: ignore[operator]
+        if late and now - (self._wait_start or now) > self.config.max_wait_wall_s:
             self._gave_up_waiting_on = self._acted_on_t  # gone, not late: time runs on
             late = False
         if late:
@@ -549,14 +556,6 @@ class MavlinkServer:
                 msg = enc[msg_id]()
                 if msg is not None:
                     self.send(msg)
-
-
-def _percentiles_ms(samples_s: deque[float]) -> dict[str, float]:
-    xs = sorted(samples_s)
-    if not xs:
-        return {}
-    pick = lambda f: round(1000.0 * xs[min(len(xs) - 1, int(f * len(xs)))], 3)  # noqa: E731
-    return {"p50": pick(0.5), "p99": pick(0.99), "max": round(1000.0 * xs[-1], 3), "n": len(xs)}
 
 
 def _bounded_key(table: dict[str, Any], key: str) -> str:

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from sitl.relay import SO_TIMESTAMPNS, Impairment, _arrival, main
+from sitl.relay import SO_TIMESTAMPNS, Impairment, kernel_arrival, main
 
 
 class Ends:
@@ -49,7 +49,7 @@ class Ends:
             except TimeoutError:
                 return got
             i, sent = struct.unpack("<Id", data)
-            got.append((i, (_arrival(anc, time.monotonic()) - sent) * 1000))
+            got.append((i, (kernel_arrival(anc, time.monotonic()) - sent) * 1000))
 
     def close(self) -> None:
         self.client.close()
