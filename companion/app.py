@@ -86,6 +86,10 @@ STALLED_S = 0.05
 """wall seconds a periodic task woke late by that mean this process was stalled"""
 MIN_SILENCE_S = 0.15
 """wall seconds of silence below which telemetry is never called stale (sped-up simulations)"""
+MIN_HOLD_SILENCE_S = 0.5
+"""wall seconds of silence below which we never command hold: sped up, a host stall freezes the
+simulated vehicle for a few hundred ms of wall time, which the clock line reads as seconds of
+vehicle time (a real vehicle, at rate 1, reaches ``stale_hold_s`` first)"""
 
 
 async def _sleep_until(wall_t: float, precise_s: float = PRECISE_SLEEP_S) -> None:
@@ -219,7 +223,9 @@ class Flight:
             if stale:
                 self.stale_for_s = age
                 self.longest_outage_s = max(self.longest_outage_s, age)
-                if age > safety.stale_hold_s and not hold_requested:
+                silent_for_s = max(silent_wall, self.link.rx_lag_s)
+                if (age > safety.stale_hold_s and not hold_requested and silent_for_s > max(
+                        safety.stale_hold_s / max(self.link.clock.rate, 1e-3), MIN_HOLD_SILENCE_S)):
                     hold_requested = True
                     self.log(f"telemetry stale for {age:.2f} s: commanding hold")
                     # in the background: the command retries while the link is down
@@ -243,37 +249,34 @@ class Flight:
         while not clock.ready and not self.finished.is_set():
             await asyncio.sleep(0.01)
         t_next = clock.now(time.monotonic())
-        t_prev = t_next - period
         while not self.finished.is_set():
             t_next += period
-            resynced = False
             wake, now = clock.wall_at(t_next), time.monotonic()
             if wake - now > RESYNC_TICKS * period / clock.rate:
                 # the clock line moved back under us (re-anchored on a vehicle that paused)
-                t_next, resynced = clock.now(now) + period, True
+                t_next = clock.now(now) + period
                 wake = clock.wall_at(t_next)
             # block at most a quarter of a tick: sped up, a tick is only a few ms of wall time
             await _sleep_until(wake, min(PRECISE_SLEEP_S, 0.25 * period / clock.rate))
             now_v = clock.now(time.monotonic())
             if now_v - t_next > RESYNC_TICKS * period:  # fell behind (a stalled vehicle or machine)
                 self.late_ticks += 1
-                t_next, resynced = now_v, True
-            # after a resync the controller integrates one tick, not the gap: an observer or integral
-            # stepped over a stall's worth of dt (Gamma * dt > 2) would diverge
-            dt = period if resynced else t_next - t_prev
-            t_prev = t_next
-            tick = None
+                t_next = now_v
+            tick, sent = None, False
             if self.engaged and self.control is not None and state.has_navigation and not self.stale:
                 self.health.observe_age(t_next - min(state.t_pos, state.t_att))
-                tick = self.control.step(state, t_next, dt)
-                if tick.rejected is None:
+                # the controller's own time follows the telemetry's stamps, not just this line:
+                # a tick with no new vehicle time to step re-sends the last setpoint
+                tick, moved = self.control.update(state, t_next)
+                if tick is not None and tick.rejected is None:
                     self._setpoint = tick.setpoint
                     self._new_setpoint.set()
-                else:
+                    sent = True
+                elif tick is not None and moved:
                     self.rejected += 1
                     self.log(f"setpoint rejected: {tick.rejected}")
             thrust = self.control.thrust if self.control else None
-            self.recorder.row(state, tick, tick is not None and tick.rejected is None,
+            self.recorder.row(state, tick, sent,
                               thrust.thrust_max_n if thrust else math.nan,
                               thrust.estimated_thrust_max_n if thrust else math.nan)
             health = self.health.sample(t_next, self.link.stats["received"], self.sent, self.link.rx_queue_depth,
@@ -418,7 +421,7 @@ class Flight:
         self.control = OffboardController(
             self.controller_name, m.vehicle, gains if isinstance(gains, PositionGains) else PositionGains(),
             reference, m.trajectory, ThrustScaleEstimator(t_max, adapt=m.thrust.adapt),
-            self.guard, estimate_thrust=m.thrust.estimate,
+            self.guard, estimate_thrust=m.thrust.estimate, period_s=1.0 / self.rate_hz,
         )
 
     async def _arm(self, timeout_s: float) -> None:

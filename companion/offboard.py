@@ -19,6 +19,7 @@ from companion.control.params import PositionGains, ReferenceParams, TrajectoryP
 from companion.control.trajectory import PositionReference, ReferenceFilter
 from companion.control.vector import Vec3
 
+from .control_time import ControllerTime, default_lead_s
 from .safety import SetpointGuard
 from .state import VehicleState
 from .thrust_scale import ThrustScaleEstimator
@@ -56,9 +57,12 @@ class OffboardController:
     thrust: ThrustScaleEstimator
     guard: SetpointGuard
     estimate_thrust: bool = True
+    period_s: float = 0.01
 
     def __post_init__(self) -> None:
         self.loop = PositionLoop.create(self.controller, self.vehicle, self.gains, self.reference)
+        self.time = ControllerTime(self.period_s, default_lead_s(self.period_s))
+        self.last: Tick | None = None
         self.filter: ReferenceFilter | None = None
         self.target: Vec3 = (0.0, 0.0, 0.0)
         self.target_yaw = 0.0
@@ -72,6 +76,8 @@ class OffboardController:
         self.target, self.target_yaw = state.pos_ned_m, yaw
         self.loop.reset()
         self.loop.thrust_n = self.vehicle.weight_n
+        self.time.restart()
+        self.last = None
 
     def set_target(self, pos_ned_m: Vec3, yaw_rad: float | None = None, speed_m_s: float | None = None) -> None:
         self.target = pos_ned_m
@@ -88,6 +94,15 @@ class OffboardController:
             return False
         d = math.dist(f.pos_ned_m, self.target)
         return d < 1e-3 and math.hypot(*f.vel_ned_m_s) < 1e-3
+
+    def update(self, state: VehicleState, t_line_s: float) -> tuple[Tick | None, bool]:
+        """Advance to the controller's time (see :mod:`companion.control_time`) on the newest
+        state: ``(tick, True)`` if it moved, ``(the previous tick, False)`` if there was no new
+        vehicle time to step (its setpoint is to be re-sent)."""
+        steps = self.time.advance(t_line_s, state.t)
+        for dt_s in steps:
+            self.last = self.step(state, self.time.t_s, dt_s)
+        return self.last, bool(steps)
 
     def step(self, state: VehicleState, t: float, dt_s: float) -> Tick:
         assert self.filter is not None, "start() first"
