@@ -46,7 +46,10 @@ def draw_flight(folder: Path) -> list[Path]:
         axs[0].plot(t, d[axis], color=color, lw=1.0, label=f"{axis} (N/E/D)"[0] + " " + "NED"[i])
         axs[0].plot(t, d[f"{axis}_ref"], color=color, lw=0.8, ls="--")
     axs[0].set_ylabel("position [m]\n(dashed: reference)")
-    err = np.sqrt((d["x"] - d["x_ref"]) ** 2 + (d["y"] - d["y_ref"]) ** 2 + (d["z"] - d["z_ref"]) ** 2)
+    if "error_m" in d:  # against the reference at the position's own time (recorder.py)
+        err = d["error_m"]
+    else:  # records written before that column
+        err = np.sqrt((d["x"] - d["x_ref"]) ** 2 + (d["y"] - d["y_ref"]) ** 2 + (d["z"] - d["z_ref"]) ** 2)
     axs[1].plot(t, err, color="k", lw=0.8)
     axs[1].set_ylabel("position error [m]")
     axs[2].plot(t, _tilt_deg(d), color="tab:red", lw=0.8)

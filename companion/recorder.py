@@ -21,6 +21,7 @@ import json
 import math
 import struct
 import time
+from collections import deque
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import IO
@@ -40,14 +41,47 @@ COLUMNS = (
     "qw", "qx", "qy", "qz",
     "qw_d", "qx_d", "qy_d", "qz_d", "p_d", "q_d", "r_d",
     "thrust_n", "thrust", "fx", "fy", "fz", "hfx", "hfy", "hfz",
-    "thrust_max_n", "thrust_max_est_n",
+    "thrust_max_n", "thrust_max_est_n", "t_pos", "error_m",
 )
 """t: vehicle clock [s]; wall: seconds since the flight started; step: mission step index;
 offboard: the autopilot flies our setpoints (1/0); streaming: a setpoint was sent this tick;
 positions NED [m]; *_ref the reference; q* the vehicle's attitude, q*_d and p_d.. the setpoint
 (rates in rad/s); thrust_n the controller's thrust [N], thrust the normalised value sent;
 f* the controller's force [N]; hf* the force-disturbance estimate [N]; thrust_max_n the scale in
-use, thrust_max_est_n its online estimate [N]."""
+use, thrust_max_est_n its online estimate [N]; t_pos: the vehicle time the position was measured at
+[s]; error_m: the distance from the reference *at t_pos* [m] (the tracking error: x - x_ref
+compares a position some ms old with the reference at the controller's time, t)."""
+
+
+class ReferenceTrail:
+    """The recent reference positions, to read the reference at a measurement's own time.
+
+    Telemetry reaches the controller some ms after it was measured, and the controller's time
+    runs that much ahead of it: at 2 m/s each 10 ms of that latency would count as 2 cm of
+    "error" that no controller could remove. The tracking error compares like with like."""
+
+    def __init__(self, length: int = 128) -> None:
+        self._t: deque[float] = deque(maxlen=length)
+        self._p: deque[tuple[float, float, float]] = deque(maxlen=length)
+
+    def add(self, t: float, pos: tuple[float, float, float]) -> None:
+        if not self._t or t > self._t[-1]:
+            self._t.append(t)
+            self._p.append(pos)
+
+    def at(self, t: float) -> tuple[float, float, float] | None:
+        """The reference at vehicle time ``t`` (linear between ticks; the ends beyond the trail)."""
+        ts, ps = self._t, self._p
+        if not ts:
+            return None
+        if t >= ts[-1]:
+            return ps[-1]
+        for i in range(len(ts) - 1, 0, -1):
+            if ts[i - 1] <= t:
+                w = (t - ts[i - 1]) / (ts[i] - ts[i - 1])
+                a, b = ps[i - 1], ps[i]
+                return (a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1]), a[2] + w * (b[2] - a[2]))
+        return ps[0]
 
 
 @dataclass
@@ -92,6 +126,7 @@ class FlightRecorder:
         self._wall0 = time.monotonic()
         self.rows = 0
         self._health: IO[str] | None = None
+        self._trail = ReferenceTrail()
 
     # --- raw traffic -------------------------------------------------------------------------
 
@@ -131,6 +166,7 @@ class FlightRecorder:
             thrust = (nan, nan)
             force = (nan,) * 6
             t = state.t
+            err = nan
         else:
             r = tick.reference
             ref = (*r.pos_ned_m, *r.vel_ned_m_s, r.yaw_rad)
@@ -139,8 +175,10 @@ class FlightRecorder:
             thrust = (float(a.thrust_n), tick.setpoint.thrust)
             force = (*tick.force_n, *tick.estimate_n)
             t = tick.t
+            self._trail.add(t, r.pos_ned_m)
+            ref_then = self._trail.at(state.t_pos)
+            err = math.dist(p, ref_then if ref_then is not None else r.pos_ned_m)
             if seg is not None:
-                err = math.dist(p, r.pos_ned_m)
                 seg.samples += 1
                 seg.sum_sq_error += err * err
                 seg.peak_error_m = max(seg.peak_error_m, err)
@@ -151,6 +189,7 @@ class FlightRecorder:
         self._csv.writerow((
             f"{t:.4f}", f"{wall:.4f}", seg.index if seg else -1, int(state.offboard), int(streaming),
             *(f"{x:.5g}" for x in (*p, *v, *ref, *q, *sp, *thrust, *force, thrust_max_n, thrust_max_est_n)),
+            f"{state.t_pos:.4f}", f"{err:.5g}",
         ))
         self.rows += 1
 

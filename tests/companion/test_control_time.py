@@ -95,3 +95,39 @@ def test_the_reference_does_not_run_ahead_of_a_vehicle_that_stood_still():
         tick, moved = c.update(st, frozen_at + 0.005 + PERIOD * k)
     assert not moved and tick is c.last
     assert tick.reference.pos_ned_m[0] - x0 <= 2.0 * (LEAD - 0.005) + 1e-6
+
+
+def test_propagation_carries_a_sample_forward_exactly_under_constant_acceleration():
+    """p(t) = p0 + v0 t + a t^2 / 2 with a = f + g e3: hovering (f = -g e3) stays put; a
+    vehicle braking at 4 m/s^2 from 2 m/s is carried 30 ms forward exactly."""
+    from companion.offboard import propagate
+
+    g = 9.81
+    assert propagate((1.0, 2.0, -3.0), (0.0, 0.0, 0.0), (0.0, 0.0, -g), g, 0.03) == (
+        (1.0, 2.0, -3.0), (0.0, 0.0, 0.0))
+    pos, vel = propagate((0.0, 0.0, -2.0), (2.0, 0.0, 0.0), (-4.0, 0.0, -g), g, 0.03)
+    assert math.isclose(pos[0], 2.0 * 0.03 - 0.5 * 4.0 * 0.03**2, rel_tol=1e-12)
+    assert math.isclose(vel[0], 2.0 - 4.0 * 0.03, rel_tol=1e-12)
+    assert math.isclose(pos[2], -2.0, abs_tol=1e-12) and abs(vel[2]) < 1e-12
+    # without an IMU: constant velocity
+    assert propagate((0.0, 0.0, 0.0), (1.0, -1.0, 0.5), None, g, 0.02)[0] == (0.02, -0.02, 0.01)
+
+
+def test_the_controller_sees_no_error_from_latency_alone():
+    """The vehicle flies exactly on a 2 m/s reference, but each sample is 30 ms old when used:
+    carried forward to the controller's time it matches the reference, so the force has no
+    position-error part (without it the controller saw 6 cm and learned to fly ahead)."""
+    c = _controller()
+    st = _hover_state(20.0)
+    c.start(st)
+    c.set_target((100.0, 0.0, -2.0))
+    for k in range(300):  # 3 s: reference at its 2 m/s cruise
+        t = 20.0 + PERIOD * k
+        tick, _ = c.update(st, t)
+        ref = c.filter
+        # the vehicle was exactly on the reference 30 ms ago (constant speed: ref - v * 0.03)
+        vx = ref.vel_ned_m_s[0]
+        st.set_position((ref.pos_ned_m[0] - vx * 0.03, 0.0, -2.0), (vx, 0.0, 0.0), t - 0.03, 0.0)
+        st.set_attitude((1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0), t - 0.005, 0.0)
+    assert math.isclose(c.filter.vel_ned_m_s[0], 2.0, rel_tol=1e-6)
+    assert abs(tick.force_n[0]) < 0.02  # N; uncarried, the 6 cm and its integral asked for 0.8 N
