@@ -106,13 +106,15 @@ def test_timestamps_are_simulated_time_at_any_speed(sitl, client):
     s = sitl(speedup=4.0)
     c = client(s.url)
     first = c.wait("ATTITUDE_QUATERNION")
-    w0 = time.monotonic()
-    time.sleep(2.0)
-    last = c.wait("ATTITUDE_QUATERNION", lambda m: m.time_boot_ms > first.time_boot_ms)
-    while (msg := c.recv(0.01)) is not None:
-        if msg.get_type() == "ATTITUDE_QUATERNION":
-            last = msg
-    wall = time.monotonic() - w0
+    w0 = w_last = time.monotonic()
+    last = first
+    # read all along: a socket left unread for 2 s overflows at ~3,800 messages/s, and the kernel
+    # drops the newest datagrams, which would make the vehicle look slow
+    while time.monotonic() - w0 < 2.0:
+        msg = c.recv(0.05)
+        if msg is not None and msg.get_type() == "ATTITUDE_QUATERNION":
+            last, w_last = msg, time.monotonic()
+    wall = w_last - w0
     simulated = (last.time_boot_ms - first.time_boot_ms) / 1000.0
     skipped = s.stop()["stats"].get("skipped_ms", 0) / 1000.0
     assert simulated / wall <= 4.3 and (simulated + skipped) / wall >= 3.6, (simulated, skipped, wall)
