@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
 import time
 from collections import Counter
 from typing import Any
@@ -157,11 +158,14 @@ class MavsdkLink(VehicleLink):
             self._valid(self.state.set_rates((w.roll_rad_s, w.pitch_rad_s, w.yaw_rad_s)))
 
     async def _position(self) -> None:
-        # PositionVelocityNed carries no timestamp: stamp it with the vehicle clock at arrival
+        # PositionVelocityNed carries no timestamp: stamp it with the newest stamp seen (attitude
+        # and IMU come at 100 Hz), not with the clock line, which runs on while a simulated
+        # vehicle pauses and would make a repeated position look new (companion/control_time.py)
         async for pv in self.telemetry.subscribe_position_velocity_ned():
             now = self._seen()
             p, v = pv.position, pv.velocity
-            t = self.clock.now(now) if self.clock.ready else self.state.t_att
+            newest = max(self.state.t_att, self.state.t_imu)
+            t = newest if math.isfinite(newest) else (self.clock.now(now) if self.clock.ready else 0.0)
             self._valid(self.state.set_position((p.north_m, p.east_m, p.down_m),
                                                 (v.north_m_s, v.east_m_s, v.down_m_s), t, now))
 
