@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
+import random
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -24,6 +27,43 @@ def child_env(**extra: str) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if k != "MAVLINK_SIGNING_KEY"}
     env.update(PYTHONUNBUFFERED="1", **extra)
     return env
+
+
+class Staller:
+    """A host that steals CPU, made repeatable: from a seeded schedule, stops (SIGSTOP) one of the
+    given processes or all of them for a random while, lets them run (SIGCONT), waits, again.
+    Exponential gaps (mean ``mean_gap_s``), stalls uniform in ``stall_s``, all wall time."""
+
+    def __init__(self, pids: list[int], seed: int, mean_gap_s: float = 0.15,
+                 stall_s: tuple[float, float] = (0.01, 0.08)) -> None:
+        self.pids, self.rng = pids, random.Random(seed)
+        self.mean_gap_s, self.stall_s = mean_gap_s, stall_s
+        self.stalls, self.stalled_s = 0, 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        choices = [[p] for p in self.pids] + [self.pids]
+        while not self._stop.wait(self.rng.expovariate(1.0 / self.mean_gap_s)):
+            which, d = self.rng.choice(choices), self.rng.uniform(*self.stall_s)
+            try:
+                for p in which:
+                    os.kill(p, signal.SIGSTOP)
+                time.sleep(d)
+            except ProcessLookupError:
+                break
+            finally:
+                for p in which:
+                    with contextlib.suppress(ProcessLookupError):
+                        os.kill(p, signal.SIGCONT)
+            self.stalls, self.stalled_s = self.stalls + 1, self.stalled_s + d
+
+    def stop(self) -> tuple[int, float]:
+        """Stop stalling (everything left running); the stalls made and their total [s]."""
+        self._stop.set()
+        self._thread.join()
+        return self.stalls, self.stalled_s
 
 
 def _kill_left_over(procs: list) -> None:
