@@ -33,6 +33,7 @@ from .mission import Mission, Step
 from .offboard import OffboardController, Setpoint
 from .recorder import FlightRecorder
 from .safety import SetpointGuard
+from .silence import AwakeSilence
 from .thrust_scale import ThrustScaleEstimator
 
 __all__ = ["FlightOptions", "FlightResult", "Flight", "LinkLost", "MissionAbort", "EXIT_CODES"]
@@ -82,6 +83,8 @@ class FlightResult:
 PRECISE_SLEEP_S = 0.0015
 RESYNC_TICKS = 5
 """the control loop resyncs to the vehicle's clock when it is this many ticks off it"""
+WATCHDOG_S = 0.02
+"""wall seconds between the watchdog's checks"""
 STALLED_S = 0.05
 """wall seconds a periodic task woke late by that mean this process was stalled"""
 MIN_SILENCE_S = 0.15
@@ -185,18 +188,22 @@ class Flight:
         safety = self.mission.safety
         hold_requested = False
         woke = time.monotonic()
+        # silence counted only while this process was awake to hear it (companion/silence.py)
+        heard_nothing, heard_no_navigation = AwakeSilence(2 * WATCHDOG_S), AwakeSilence(2 * WATCHDOG_S)
         while not self.finished.is_set():
-            await asyncio.sleep(0.02)
+            await asyncio.sleep(WATCHDOG_S)
             st = self.link.state
-            now, due = time.monotonic(), woke + 0.02
+            now, due = time.monotonic(), woke + WATCHDOG_S
             woke = now
             if now - due > STALLED_S:
                 # this process was stalled: what arrived meanwhile is still unread in the socket,
                 # so nothing can be judged old yet; the reader drains it before the next check
                 continue
+            silent_link = heard_nothing.check(st.wall_last, now)
+            silent_wall = heard_no_navigation.check(min(st.wall_pos, st.wall_att), now)
             # from the first message on (wait_connected bounds the wait for the first one)
-            if st.sysid and math.isfinite(st.wall_last) and now - st.wall_last > safety.link_lost_s:
-                raise LinkLost(f"vehicle link lost: no telemetry for {now - st.wall_last:.1f} s "
+            if st.sysid and math.isfinite(st.wall_last) and silent_link > safety.link_lost_s:
+                raise LinkLost(f"vehicle link lost: no telemetry for {silent_link:.1f} s "
                                f"(bound {safety.link_lost_s:g} s)")
             if not self.engaged:
                 self.stale = False
@@ -204,7 +211,6 @@ class Flight:
             age = self.link.telemetry_age(now)
             # stale: too old in vehicle time AND really silent on the wire; sped up, a short pause
             # of the (simulated) vehicle itself would otherwise look like seconds of vehicle time
-            silent_wall = now - min(st.wall_pos, st.wall_att)
             stale = age > safety.telemetry_timeout_s and silent_wall > max(
                 safety.telemetry_timeout_s / max(self.link.clock.rate, 1e-3), MIN_SILENCE_S)
             # behind: datagrams keep coming but wait in our own queue (this process starved of CPU);
@@ -223,8 +229,9 @@ class Flight:
             if stale:
                 self.stale_for_s = age
                 self.longest_outage_s = max(self.longest_outage_s, age)
-                silent_for_s = max(silent_wall, self.link.rx_lag_s)
-                if (age > safety.stale_hold_s and not hold_requested and silent_for_s > max(
+                # hold only for real silence: not for a backlog in our own queue (it clears in one
+                # pass of the reader) nor for a stall of this host (not counted, above)
+                if (age > safety.stale_hold_s and not hold_requested and silent_wall > max(
                         safety.stale_hold_s / max(self.link.clock.rate, 1e-3), MIN_HOLD_SILENCE_S)):
                     hold_requested = True
                     self.log(f"telemetry stale for {age:.2f} s: commanding hold")

@@ -129,3 +129,22 @@ def test_clock_reanchors_on_a_repeated_stamp_from_a_vehicle_that_waited():
     assert math.isclose(c.age(12.0, 3.31), 0.04, abs_tol=1e-9)
     c.observe(12.04, 3.31)  # the vehicle runs on from there
     assert math.isclose(c.rate, 4.0, rel_tol=1e-9) and abs(c.age(12.04, 3.31)) < 1e-9
+
+
+def test_silence_counts_only_while_awake():
+    """A watchdog checking every 20 ms: a real outage counts at full speed; a 1 s stall of this
+    host (no check ran, nothing could arrive) counts as one 40 ms step."""
+    from companion.silence import AwakeSilence
+
+    s = AwakeSilence(max_step_s=0.04)
+    assert math.isclose(s.check(100.0, 100.005), 0.005)  # a packet 5 ms ago
+    t = 100.005
+    for _ in range(50):  # 1 s of checks with nothing arriving
+        t += 0.02
+        s.check(100.0, t)
+    assert math.isclose(s.silent_s, 1.005, abs_tol=1e-9)
+    s.check(t + 0.001, t + 0.002)  # a packet: silence restarts
+    assert math.isclose(s.silent_s, 0.001, abs_tol=1e-9)
+    t += 0.002
+    assert math.isclose(s.check(t - 0.001, t + 1.0), 0.041)  # stalled 1 s: one 40 ms step
+    assert math.isclose(s.check(t - 0.001, t + 1.02), 0.061)  # then it counts again
