@@ -8,7 +8,7 @@ import time
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from .test_sitl_pymavlink import take_off
+from .test_sitl_pymavlink import HOLD, take_off
 
 pytestmark = pytest.mark.integration
 NAN = math.nan
@@ -80,6 +80,9 @@ def test_commands_are_idempotent_and_refusals_say_why(sitl, client):
     assert "in the air" in c.text("Disarming denied")
     assert c.set_mode(1, 0) == mavlink.MAV_RESULT_DENIED  # MANUAL: no RC here
     assert c.command(31000) == mavlink.MAV_RESULT_UNSUPPORTED
+    # the second take-off re-entered TAKEOFF (as PX4 does in HOLD), already at its altitude: it
+    # hands back to HOLD on the next check, however long the commands above took on this host
+    c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and h.custom_mode == HOLD, timeout=10)
     report = s.stop()
     assert report["armed"] and report["mode"] == "HOLD"
 
