@@ -200,7 +200,7 @@ class Flight:
                 # so nothing can be judged old yet; the reader drains it before the next check
                 continue
             silent_link = heard_nothing.check(st.wall_last, now)
-            silent_wall = heard_no_navigation.check(min(st.wall_pos, st.wall_att), now)
+            silent_nav = heard_no_navigation.check(min(st.wall_pos, st.wall_att), now)
             # from the first message on (wait_connected bounds the wait for the first one)
             if st.sysid and math.isfinite(st.wall_last) and silent_link > safety.link_lost_s:
                 raise LinkLost(f"vehicle link lost: no telemetry for {silent_link:.1f} s "
@@ -211,7 +211,7 @@ class Flight:
             age = self.link.telemetry_age(now)
             # stale: too old in vehicle time AND really silent on the wire; sped up, a short pause
             # of the (simulated) vehicle itself would otherwise look like seconds of vehicle time
-            stale = age > safety.telemetry_timeout_s and silent_wall > max(
+            stale = age > safety.telemetry_timeout_s and silent_nav > max(
                 safety.telemetry_timeout_s / max(self.link.clock.rate, 1e-3), MIN_SILENCE_S)
             # behind: datagrams keep coming but wait in our own queue (this process starved of CPU);
             # measured on our side of the socket, so a pausing vehicle cannot fake it
@@ -231,7 +231,7 @@ class Flight:
                 self.longest_outage_s = max(self.longest_outage_s, age)
                 # hold only for real silence: not for a backlog in our own queue (it clears in one
                 # pass of the reader) nor for a stall of this host (not counted, above)
-                if (age > safety.stale_hold_s and not hold_requested and silent_wall > max(
+                if (age > safety.stale_hold_s and not hold_requested and silent_nav > max(
                         safety.stale_hold_s / max(self.link.clock.rate, 1e-3), MIN_HOLD_SILENCE_S)):
                     hold_requested = True
                     self.log(f"telemetry stale for {age:.2f} s: commanding hold")
@@ -515,6 +515,7 @@ class Flight:
             med = periods[len(periods) // 2]
             jitter = {"median_period_ms": 1000 * med,
                       "p99_abs_jitter_ms": 1000 * sorted(abs(p - med) for p in periods)[int(0.99 * len(periods))]}
+        ct = self.control.time if self.control else None
         return {
             "mission": self.mission.name, "result": result, "message": message,
             "controller": self.controller_name, "rate_hz": self.rate_hz, "backend": self.opt.backend,
@@ -524,6 +525,9 @@ class Flight:
             "thrust_max_n": thrust.thrust_max_n if thrust else None,
             "thrust_max_est_n": thrust.estimated_thrust_max_n if thrust else None,
             "vehicle_clock_rate": self.link.clock.rate, "setpoint_timing": jitter,
+            # how often the controller's time waited for telemetry or replayed a gap (control_time.py)
+            "controller_time": {"held_ticks": ct.held_ticks, "sub_steps": ct.sub_steps,
+                                "dropped_s": round(ct.dropped_s, 3)} if ct else None,
             "cpu_s": time.process_time() - self._cpu0, "wall_s": time.monotonic() - self._wall0,
             "link_stats": dict(getattr(self.link, "stats", {})),
             "signing": fingerprint(self.opt.signing_key) if self.opt.signing_key else "off",

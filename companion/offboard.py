@@ -17,7 +17,7 @@ from companion.control import quaternion as quat
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
 from companion.control.params import PositionGains, ReferenceParams, TrajectoryParams, VehicleParams
 from companion.control.trajectory import PositionReference, ReferenceFilter
-from companion.control.vector import Vec3
+from companion.control.vector import Vec3, add, scale
 
 from .control_time import ControllerTime, default_lead_s
 from .safety import SetpointGuard
@@ -39,15 +39,10 @@ def propagate(pos_ned_m: Vec3, vel_ned_m_s: Vec3, specific_force_ned_m_s2: Vec3 
     flying 2 m/s would show 2-8 cm of error that is only latency; the integral terms then learn
     to fly that far ahead of the reference. Carried forward, the controller compares like with
     like."""
-    if specific_force_ned_m_s2 is None:
-        a = (0.0, 0.0, 0.0)
-    else:
-        f = specific_force_ned_m_s2
-        a = (f[0], f[1], f[2] + gravity_m_s2)
-    h = 0.5 * dt_s * dt_s
-    pos = (pos_ned_m[0] + vel_ned_m_s[0] * dt_s + a[0] * h, pos_ned_m[1] + vel_ned_m_s[1] * dt_s + a[1] * h,
-           pos_ned_m[2] + vel_ned_m_s[2] * dt_s + a[2] * h)
-    vel = (vel_ned_m_s[0] + a[0] * dt_s, vel_ned_m_s[1] + a[1] * dt_s, vel_ned_m_s[2] + a[2] * dt_s)
+    f = specific_force_ned_m_s2
+    a = (0.0, 0.0, 0.0) if f is None else (f[0], f[1], f[2] + gravity_m_s2)
+    pos = add(add(pos_ned_m, scale(dt_s, vel_ned_m_s)), scale(0.5 * dt_s * dt_s, a))
+    vel = add(vel_ned_m_s, scale(dt_s, a))
     return pos, vel
 
 
