@@ -95,6 +95,14 @@ simulated vehicle for a few hundred ms of wall time, which the clock line reads 
 vehicle time (a real vehicle, at rate 1, reaches ``stale_hold_s`` first)"""
 
 
+def wall_timeout_s(timeout_v_s: float, rate: float) -> float:
+    """The wall-clock bound on a mission timeout of ``timeout_v_s`` vehicle seconds: twice what the
+    vehicle's rate (bounded to 0.25..1) makes it, plus 2 s. Timeouts count vehicle time, which
+    only telemetry stamps move; this bound fires even if those stamps stop or lie, so no stamp
+    can keep a mission waiting for ever (a simulated vehicle slower than 0.5x may meet it first)."""
+    return 2.0 * timeout_v_s / min(max(rate, 0.25), 1.0) + 2.0
+
+
 async def _sleep_until(wall_t: float, precise_s: float = PRECISE_SLEEP_S) -> None:
     """asyncio.sleep rounds its wake-up up to whole milliseconds (epoll); for the last
     ``precise_s`` a blocking nanosleep lands the tick within ~0.1 ms. The loop is blocked only for
@@ -317,7 +325,9 @@ class Flight:
         """Wait until ``cond()`` (checked every 10 ms wall), at most ``timeout_v`` vehicle seconds.
         Raises on interrupt, on leaving offboard while expected, and on timeout."""
         clock = self.link.clock
-        start = clock.now(time.monotonic())
+        wall_start = time.monotonic()
+        start = clock.now(wall_start)
+        wall_limit = wall_timeout_s(timeout_v, clock.rate)
         while True:
             if self.interrupted.is_set():
                 raise _Interrupted()
@@ -326,7 +336,8 @@ class Flight:
                 raise MissionAbort(f"the autopilot left offboard (mode {self.link.state.mode}){during}")
             if cond():
                 return
-            if clock.now(time.monotonic()) - start > timeout_v:
+            now = time.monotonic()
+            if clock.now(now) - start > timeout_v or now - wall_start > wall_limit:
                 raise MissionAbort(f"timeout: {what} not within {timeout_v:g} s")
             await asyncio.sleep(0.01)
 
@@ -530,6 +541,7 @@ class Flight:
                                 "dropped_s": round(ct.dropped_s, 3)} if ct else None,
             "cpu_s": time.process_time() - self._cpu0, "wall_s": time.monotonic() - self._wall0,
             "link_stats": dict(getattr(self.link, "stats", {})),
+            "older_samples": self.link.state.older_samples,
             "signing": fingerprint(self.opt.signing_key) if self.opt.signing_key else "off",
             "signing_rejections": dict(getattr(self.link, "signing_rejections", {})),
         }

@@ -12,7 +12,8 @@ Cost stays constant per packet however fast telemetry arrives: one sample is kep
 wall time (the least delayed of that bin), the anchor is updated as packets come, and the rate
 is refitted at most ten times a second. After 50 ms without a sample the line is re-anchored on
 the next one: a paused (simulated) vehicle resumes behind the old line, a link outage on it.
-A sample that repeats the newest stamp after such a silence says the vehicle's clock stood still
+Stamps reach it only through :class:`~companion.stamps.StampGate` (no jumps, no other time
+base). A sample that repeats the newest stamp after such a silence says the vehicle's clock stood still
 (a simulated vehicle waiting for this process, see ``sitl --wait-for-setpoints``): the line is
 re-anchored on it, so the waiting is not mistaken for telemetry growing old.
 
@@ -43,6 +44,14 @@ class VehicleClock:
         self._anchor: tuple[float, float] | None = None
         self._last_fit = -math.inf
 
+    def reset(self) -> None:
+        """Forget the line: the vehicle's time base changed (it restarted). Only the stamp gate
+        (:mod:`companion.stamps`) decides that; a stamp that merely goes back is never believed."""
+        self._samples.clear()
+        self._newest = self._anchor = None
+        self._rate = 1.0
+        self._last_fit = -math.inf
+
     @property
     def ready(self) -> bool:
         return self._newest is not None
@@ -54,9 +63,6 @@ class VehicleClock:
     def observe(self, vehicle_t: float, wall_t: float) -> None:
         if not math.isfinite(vehicle_t):
             return
-        if self._newest is not None and vehicle_t < self._newest[0] - 1.0:
-            self._samples.clear()  # the vehicle restarted: its clock jumped back
-            self._newest = self._anchor = None
         if self._newest is not None and vehicle_t <= self._newest[0]:
             if vehicle_t == self._newest[0] and wall_t - self._newest[1] > SILENCE_S:
                 self._samples.clear()  # the vehicle's clock stood still: it is now, here

@@ -71,16 +71,33 @@ class VehicleState:
 
     # --- updates: each refuses (returns False, changes nothing) what cannot be a real sample ---
 
+    older_samples: int = 0
+    """valid samples not stored because one as new or newer of the same stream was already held"""
+
+    def _older(self, t: float, held: float) -> bool:
+        if t <= held:
+            self.older_samples += 1  # reordered, repeated or replayed: never replaces what is held
+            return True
+        return False
+
+    def restart_time(self) -> None:
+        """The vehicle's time base changed (see :mod:`companion.stamps`): forget the stamps held."""
+        self.t_pos = self.t_att = self.t_imu = -math.inf
+
     def set_attitude(self, q: Quat, omega_rad_s: Vec3 | None, t: float, wall: float) -> bool:
-        """Attitude (renormalised) and, if given, body rates, sampled at vehicle time ``t``."""
+        """Attitude (renormalised) and, if given, body rates, sampled at vehicle time ``t``.
+        False: not a possible sample (refused); a valid sample older than the one held is
+        accepted as valid but not stored."""
         if not (_within(q, 1.5) and math.isfinite(t) and t >= 0.0):
             return False
         n = math.sqrt(sum(c * c for c in q))
         if abs(n - 1.0) > QUAT_NORM_TOLERANCE:
             return False
+        if omega_rad_s is not None and not _within(omega_rad_s, MAX_RATE_RAD_S):
+            return False
+        if self._older(t, self.t_att):
+            return True
         if omega_rad_s is not None:
-            if not _within(omega_rad_s, MAX_RATE_RAD_S):
-                return False
             self.omega_rad_s = omega_rad_s
         self.q = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
         self.t_att, self.wall_att = t, wall
@@ -93,8 +110,10 @@ class VehicleState:
         return True
 
     def set_position(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, t: float, wall: float) -> bool:
-        if not (_within(pos_ned_m, MAX_POSITION_M) and _within(vel_ned_m_s, MAX_SPEED_M_S) and not math.isnan(t)):
+        if not (_within(pos_ned_m, MAX_POSITION_M) and _within(vel_ned_m_s, MAX_SPEED_M_S) and math.isfinite(t)):
             return False
+        if self._older(t, self.t_pos):
+            return True
         self.pos_ned_m, self.vel_ned_m_s = pos_ned_m, vel_ned_m_s
         self.t_pos, self.wall_pos = t, wall
         return True
@@ -102,6 +121,8 @@ class VehicleState:
     def set_imu(self, specific_force_body_m_s2: Vec3, t: float, wall: float) -> bool:
         if not (_within(specific_force_body_m_s2, MAX_SPECIFIC_FORCE_M_S2) and math.isfinite(t) and t >= 0.0):
             return False
+        if self._older(t, self.t_imu):
+            return True
         self.specific_force_body_m_s2 = specific_force_body_m_s2
         self.t_imu, self.wall_imu = t, wall
         return True

@@ -11,6 +11,7 @@ from typing import Callable
 from companion.clock import VehicleClock
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
+from companion.stamps import Admitted, StampGate
 from companion.state import VehicleState
 
 from .flavour import Flavour
@@ -44,6 +45,23 @@ class VehicleLink(abc.ABC):
     clock: VehicleClock
     flavour: Flavour | None
     stats: Counter[str]
+
+    gate: StampGate
+    """which telemetry stamps are believed (companion/stamps.py); counts into ``stats``"""
+
+    def _admit(self, stamp_s: float, wall: float) -> Admitted | None:
+        """A sample's stamp through the gate; on a change of the vehicle's time base the clock and
+        the held stamps start over."""
+        before = self.gate.rebases
+        admitted = self.gate.admit(stamp_s, wall, self.clock.rate if self.clock.ready else 1.0)
+        if self.gate.rebases != before:
+            self.clock.reset()
+            self.state.restart_time()
+        return admitted
+
+    def _observe(self, admitted: Admitted, wall: float) -> None:
+        if admitted.feeds_clock:
+            self.clock.observe(admitted.t_s, wall)
 
     def _valid(self, accepted: bool) -> bool:
         """Pass through a ``VehicleState.set_*`` result, counting a refused sample."""

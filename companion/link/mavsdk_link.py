@@ -31,6 +31,7 @@ from mavsdk.plugins.mavlink_direct import MavlinkMessage
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.clock import VehicleClock
+from companion.stamps import StampGate
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 from companion.state import VehicleState
@@ -69,6 +70,7 @@ class MavsdkLink(VehicleLink):
         self.clock = VehicleClock()
         self.flavour: Flavour | None = None
         self.stats: Counter[str] = Counter()
+        self.gate = StampGate(counts=self.stats)
         self._sdk: Mavsdk | None = None
         self._tap: asyncio.DatagramTransport | None = None
         self._system: Any = None
@@ -149,9 +151,9 @@ class MavsdkLink(VehicleLink):
     async def _attitude(self) -> None:
         async for q in self.telemetry.subscribe_attitude_quaternion():
             now = self._seen()
-            t = q.timestamp_us * 1e-6
-            if self._valid(self.state.set_attitude((q.w, q.x, q.y, q.z), None, t, now)):
-                self.clock.observe(t, now)
+            a = self._admit(q.timestamp_us * 1e-6, now)
+            if a is not None and self._valid(self.state.set_attitude((q.w, q.x, q.y, q.z), None, a.t_s, now)):
+                self._observe(a, now)
 
     async def _rates(self) -> None:
         async for w in self.telemetry.subscribe_attitude_angular_velocity_body():
@@ -166,6 +168,8 @@ class MavsdkLink(VehicleLink):
             p, v = pv.position, pv.velocity
             newest = max(self.state.t_att, self.state.t_imu)
             t = newest if math.isfinite(newest) else (self.clock.now(now) if self.clock.ready else 0.0)
+            if t <= self.state.t_pos:  # two positions between attitude stamps: the second is newer
+                t = self.state.t_pos + 1e-6
             self._valid(self.state.set_position((p.north_m, p.east_m, p.down_m),
                                                 (v.north_m_s, v.east_m_s, v.down_m_s), t, now))
 
@@ -173,9 +177,10 @@ class MavsdkLink(VehicleLink):
         async for imu in self.telemetry.subscribe_imu():
             now = self._seen()
             a = imu.acceleration_frd
-            t = imu.timestamp_us * 1e-6
-            if self._valid(self.state.set_imu((a.forward_m_s2, a.right_m_s2, a.down_m_s2), t, now)):
-                self.clock.observe(t, now)
+            ad = self._admit(imu.timestamp_us * 1e-6, now)
+            if ad is not None and self._valid(self.state.set_imu((a.forward_m_s2, a.right_m_s2, a.down_m_s2),
+                                                                  ad.t_s, now)):
+                self._observe(ad, now)
 
     async def _mode(self) -> None:
         async for mode in self.telemetry.subscribe_flight_mode():

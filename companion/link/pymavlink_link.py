@@ -22,6 +22,7 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.clock import VehicleClock
+from companion.stamps import StampGate
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 from companion.state import VehicleState
@@ -57,6 +58,7 @@ class PymavlinkLink(VehicleLink):
         self.clock = VehicleClock()
         self.flavour: Flavour | None = None
         self.stats: Counter[str] = Counter()
+        self.gate = StampGate(counts=self.stats)
         self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
         self.parser = new_parser()
         self.signature_check: SignatureCheck | None = None
@@ -200,19 +202,20 @@ class PymavlinkLink(VehicleLink):
             return
         st.wall_last = wall
         if kind == "ATTITUDE_QUATERNION":
-            t = msg.time_boot_ms * 1e-3
-            if self._valid(st.set_attitude((msg.q1, msg.q2, msg.q3, msg.q4),
-                                           (msg.rollspeed, msg.pitchspeed, msg.yawspeed), t, wall)):
-                self.clock.observe(t, wall)
+            a = self._admit(msg.time_boot_ms * 1e-3, wall)
+            if a is not None and self._valid(st.set_attitude(
+                    (msg.q1, msg.q2, msg.q3, msg.q4), (msg.rollspeed, msg.pitchspeed, msg.yawspeed), a.t_s, wall)):
+                self._observe(a, wall)
         elif kind == "LOCAL_POSITION_NED":
-            t = msg.time_boot_ms * 1e-3
-            if self._valid(st.set_position((msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), t, wall)):
-                self.clock.observe(t, wall)
+            a = self._admit(msg.time_boot_ms * 1e-3, wall)
+            if a is not None and self._valid(st.set_position(
+                    (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), a.t_s, wall)):
+                self._observe(a, wall)
         elif kind == "HIGHRES_IMU":
             if msg.fields_updated & 0x7 == 0x7:
-                t = msg.time_usec * 1e-6
-                if self._valid(st.set_imu((msg.xacc, msg.yacc, msg.zacc), t, wall)):
-                    self.clock.observe(t, wall)
+                a = self._admit(msg.time_usec * 1e-6, wall)
+                if a is not None and self._valid(st.set_imu((msg.xacc, msg.yacc, msg.zacc), a.t_s, wall)):
+                    self._observe(a, wall)
         elif kind == "EXTENDED_SYS_STATE":
             st.landed_state = msg.landed_state
         elif kind == "SYS_STATUS":

@@ -19,13 +19,16 @@ def test_clock_learns_the_speedup_and_schedules_ticks():
     assert math.isclose(c.age(21.0, 103.0), 1.0, rel_tol=1e-6)
 
 
-def test_clock_ignores_reordered_samples_and_survives_a_vehicle_restart():
+def test_clock_ignores_reordered_samples_and_starts_over_when_reset():
     c = VehicleClock()
     for k in range(100):
         c.observe(5.0 + 0.01 * k, 0.01 * k)
     c.observe(5.5, 1.0)  # late, older sample: ignored
     assert math.isclose(c.now(0.99), 5.99, abs_tol=1e-9)
-    c.observe(0.1, 2.0)  # restarted vehicle: clock back near zero
+    c.observe(0.1, 2.0)  # a stamp far back moves nothing: only the stamp gate may rebase the clock
+    assert math.isclose(c.now(2.0), 7.0, abs_tol=1e-6)
+    c.reset()  # the gate saw a restarted vehicle: clock back near zero
+    c.observe(0.1, 2.0)
     assert math.isclose(c.now(2.0), 0.1)
 
 

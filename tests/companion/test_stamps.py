@@ -1,0 +1,146 @@
+"""The stamp gate: no telemetry stamp of another time base, jumping forward, going backwards or
+repeating may move the vehicle clock or stall it; a sample older than the one held never
+replaces it; a vehicle that really restarts is followed once its old time base has gone silent."""
+
+import math
+import time
+
+from companion.clock import VehicleClock
+from companion.stamps import StampGate
+from companion.state import VehicleState
+from companion.control_time import ControllerTime, default_lead_s
+
+PERIOD = 0.01
+
+
+class Feed:
+    """A link's view without sockets: the gate, the clock and the state, fed as the link does."""
+
+    def __init__(self) -> None:
+        self.gate, self.clock, self.state = StampGate(), VehicleClock(), VehicleState()
+        self.time = ControllerTime(PERIOD, default_lead_s(PERIOD))
+
+    def attitude(self, stamp: float, wall: float, q=(1.0, 0.0, 0.0, 0.0)) -> bool:
+        before = self.gate.rebases
+        a = self.gate.admit(stamp, wall, self.clock.rate if self.clock.ready else 1.0)
+        if self.gate.rebases != before:
+            self.clock.reset()
+            self.state.restart_time()
+        if a is None or not self.state.set_attitude(q, (0.0, 0.0, 0.0), a.t_s, wall):
+            return False
+        if a.feeds_clock:
+            self.clock.observe(a.t_s, wall)
+        return True
+
+    def imu(self, stamp: float, wall: float, f=(0.0, 0.0, -9.81)) -> bool:
+        a = self.gate.admit(stamp, wall, self.clock.rate if self.clock.ready else 1.0)
+        if a is None or not self.state.set_imu(f, a.t_s, wall):
+            return False
+        if a.feeds_clock:
+            self.clock.observe(a.t_s, wall)
+        return True
+
+    def fly(self, t0: float, wall0: float, seconds: float, rate: float = 1.0) -> tuple[float, float]:
+        """Genuine attitude at 100 Hz of wall time, the vehicle running at ``rate``; the controller
+        ticks with it. Returns the last (stamp, wall)."""
+        n = int(round(seconds / PERIOD))
+        for k in range(1, n + 1):
+            w = wall0 + PERIOD * k
+            t = t0 + rate * PERIOD * k
+            self.attitude(t, w)
+            self.time.advance(self.clock.now(w), self.state.t)
+        return t0 + rate * PERIOD * n, wall0 + PERIOD * n
+
+
+def test_unix_time_imu_stamps_never_move_the_clock_and_the_controller_goes_on():
+    """The field defect: ten HIGHRES_IMU frames stamped in UNIX time mid-flight."""
+    f = Feed()
+    t, w = f.fly(100.0, 5000.0, 2.0)
+    unix_s = time.time()
+    for k in range(10):
+        f.imu(unix_s + 0.001 * k, w + 0.0005 * k)
+    assert f.gate.counts["stamp_unix_time"] == 10
+    assert f.state.t < 1000.0 and math.isclose(f.clock.now(w), t, abs_tol=0.02)
+    before = f.time.t_s
+    t2, w2 = f.fly(t, w, 1.0)
+    assert math.isclose(f.time.t_s - before, 1.0, abs_tol=0.03)  # advanced with the vehicle, not stuck
+    assert math.isclose(f.clock.now(w2), t2, abs_tol=0.02)
+
+
+def test_unix_time_imu_data_is_used_at_the_newest_believed_stamp_when_that_is_all_there_is():
+    f = Feed()
+    t, w = f.fly(50.0, 10.0, 0.5)
+    assert f.imu(time.time(), w + 0.001, (0.1, 0.2, -9.7))
+    assert f.state.specific_force_body_m_s2 == (0.1, 0.2, -9.7) and f.state.t_imu == t
+
+
+def test_a_jump_forward_is_refused_and_moves_nothing():
+    f = Feed()
+    t, w = f.fly(100.0, 0.0, 2.0)
+    for jump in (1.0, 60.0, 4.0e6):  # 1 s to 46 days ahead, 5 ms after the last genuine sample
+        assert not f.attitude(t + jump, w + 0.005, q=(0.9659, 0.2588, 0.0, 0.0))
+    assert f.gate.counts["stamp_jump_forward"] == 3
+    assert f.state.q == (1.0, 0.0, 0.0, 0.0) and f.state.t == t
+    assert math.isclose(f.clock.now(w + 0.005), t + 0.005, abs_tol=0.01)
+
+
+def test_forward_steps_the_vehicle_could_have_lived_are_believed():
+    """A simulated vehicle at 10x after our own 0.3 s stall: its samples arrive in a burst."""
+    f = Feed()
+    t, w = f.fly(0.0, 0.0, 3.0, rate=10.0)
+    assert math.isclose(f.clock.rate, 10.0, rel_tol=1e-6)
+    assert f.attitude(t + 3.0, w + 0.3)  # 0.3 s of wall at 10x: 3 s of vehicle time, believed
+    assert f.gate.counts["stamp_jump_forward"] == 0
+
+
+def test_going_backwards_is_refused_and_an_older_sample_never_replaces_a_newer_one():
+    f = Feed()
+    t, w = f.fly(100.0, 0.0, 1.0)
+    assert not f.attitude(t - 30.0, w + 0.002, q=(0.9659, 0.2588, 0.0, 0.0))  # far back: refused
+    assert f.gate.counts["stamp_backwards"] == 1
+    f.attitude(t - 0.05, w + 0.003, q=(0.9659, 0.2588, 0.0, 0.0))  # a little older: valid, not stored
+    assert f.state.q == (1.0, 0.0, 0.0, 0.0) and f.state.t_att == t
+    assert f.state.older_samples == 1
+    assert math.isclose(f.clock.now(w + 0.003), t + 0.003, abs_tol=0.01)
+
+
+def test_a_repeated_stamp_with_other_data_replaces_nothing_and_does_not_stall_the_clock():
+    f = Feed()
+    t, w = f.fly(100.0, 0.0, 1.0)
+    for k in range(20):  # the newest stamp, again and again, with a tilted attitude
+        f.attitude(t, w + 0.001 * k, q=(0.9659, 0.2588, 0.0, 0.0))
+    assert f.state.q == (1.0, 0.0, 0.0, 0.0)
+    before = f.time.t_s
+    f.fly(t, w + 0.02, 0.5)  # genuine samples go on: the controller's time moves with them
+    assert math.isclose(f.time.t_s - before, 0.52, abs_tol=0.03)
+
+
+def test_a_few_frames_of_another_base_mixed_into_a_live_stream_never_rebase():
+    f = Feed()
+    t, w = f.fly(100.0, 0.0, 1.0)
+    for k in range(200):  # 2 s of a live stream, with a consistent forged base interleaved
+        w += PERIOD
+        t += PERIOD
+        f.attitude(t, w)
+        f.attitude(5000.0 + PERIOD * k, w + 0.001)
+    assert f.gate.rebases == 0 and f.state.t_att == t
+
+
+def test_a_vehicle_that_restarted_is_followed_once_its_old_base_fell_silent():
+    f = Feed()
+    t, w = f.fly(300.0, 0.0, 1.0)
+    w += 0.5  # reboot
+    accepted = [f.attitude(0.5 + PERIOD * k, w + PERIOD * k) for k in range(200)]
+    assert f.gate.rebases == 1
+    first = accepted.index(True)
+    assert PERIOD * first <= 1.0 + 0.05  # within the silence bound of the old base's last sample
+    assert all(accepted[first:])
+    assert f.state.t_att < 3.0 and math.isclose(f.clock.now(w + 2.0), 0.5 + 2.0, abs_tol=0.05)
+
+
+def test_nan_negative_and_inf_stamps_are_refused():
+    f = Feed()
+    f.fly(10.0, 0.0, 0.5)
+    for bad in (math.nan, -1.0, math.inf):
+        assert not f.attitude(bad, 0.6)
+    assert f.gate.counts["stamp_invalid"] == 3

@@ -1,0 +1,76 @@
+"""Telemetry whose timestamps cannot be trusted, injected on the vehicle's side of a real UDP path
+(tests/helpers/mitm.py) with the autopilot's own system and component id.
+
+The field defect this closes: ten HIGHRES_IMU frames stamped in UNIX time jumped the companion's
+clock 1.7e9 s ahead; its controller's time stuck, one tilted setpoint was re-sent for ever and the
+mission neither ended nor timed out. Here every class of bad stamp arrives mid-hold, ten frames
+each, and the flight must not notice: it completes, the hold lasts its 20 vehicle seconds (the
+clock neither jumped nor stalled), the position stays within the clean hold's bounds, and every
+forged frame is counted where it was refused.
+
+Bounds: a clean hold in calm air tracks to about 1 cm RMS (docs/faults.md); 5 cm RMS and 15 cm peak
+are the waypoint square's clean bounds, far below what any one forged sample believed would do
+(a 30 deg attitude flown for one tick moves the vehicle ~1 cm, but a clock 1 h ahead ends the hold
+at once, and a position 5 m off commands the full tilt).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import pytest
+
+from helpers.mitm import Mitm
+
+pytestmark = pytest.mark.integration
+
+WAIT = ("--wait-for-setpoints", "0.05")
+
+
+def _attacks(mitm: Mitm) -> dict[str, int]:
+    """Ten frames of each class, built from the newest genuine messages."""
+    f = mitm.forge
+    att = mitm.latest("ATTITUDE_QUATERNION")
+    pos = mitm.latest("LOCAL_POSITION_NED")
+    unix_us = int(time.time() * 1e6)
+    tilted = (math.cos(math.radians(15)), math.sin(math.radians(15)), 0.0, 0.0)  # 30 deg of roll
+    frames = {
+        "unix_time_imu": [f.highres_imu_encode(unix_us + 1000 * k, 0.0, 0.0, -9.81, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+                                               0, 0x7) for k in range(10)],
+        "jump_forward": [f.attitude_quaternion_encode(att.time_boot_ms + 3_600_000 + k, *tilted, 0, 0, 0)
+                         for k in range(10)],
+        "backwards": [f.local_position_ned_encode(max(att.time_boot_ms - 30_000, 1) + k, pos.x + 5.0, pos.y,
+                                                  pos.z, 0, 0, 0) for k in range(10)],
+        "repeat": [f.local_position_ned_encode(pos.time_boot_ms, pos.x + 2.0, pos.y, pos.z, 0, 0, 0)
+                   for _ in range(10)],
+    }
+    for msgs in frames.values():
+        mitm.inject(msgs)
+    return {k: len(v) for k, v in frames.items()}
+
+
+def test_no_timestamp_moves_or_stalls_the_companion_clock(sitl, companion):
+    s = sitl(*WAIT, speedup=4.0)
+    host, port = s.url.split(":")
+    mitm = Mitm((host, int(port)))
+    try:
+        c = companion("missions/hold.toml", mitm.url)
+        c.wait_for("step hold")
+        time.sleep(1.0)  # 4 vehicle seconds into the hold
+        sent = _attacks(mitm)
+        code, out = c.finish(timeout=120)
+    finally:
+        mitm.close()
+    assert code == 0, out
+    data = json.loads((c.flight_dir() / "segments.json").read_text())
+    hold = next(x for x in data["segments"] if x["name"] == "hold")
+    assert abs((hold["t_end"] - hold["t_start"]) - 20.0) < 0.5, hold
+    assert hold["rms_error_m"] < 0.05 and hold["peak_error_m"] < 0.15, hold
+    stats = data["link_stats"]
+    assert stats.get("stamp_unix_time", 0) >= sent["unix_time_imu"], stats
+    assert stats.get("stamp_jump_forward", 0) >= sent["jump_forward"], stats
+    assert stats.get("stamp_backwards", 0) >= sent["backwards"], stats
+    assert data["older_samples"] >= sent["repeat"], data
+    assert data["controller_time"]["dropped_s"] == 0.0, data["controller_time"]
