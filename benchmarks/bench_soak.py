@@ -34,7 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from companion.demo import start_vehicle  # noqa: E402
-from companion.health import rss_mb  # noqa: E402
+from companion.flight.health import rss_mb  # noqa: E402
 
 CYCLE_S = 75.0
 """one square (about 30 s with its corner holds) and a 45 s hold"""

@@ -19,20 +19,19 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import signal
 import sys
 from pathlib import Path
 from typing import Sequence
 
 from companion.config import ConfigError
-from companion.link.signing import SigningError, fingerprint, write_key_file
-from companion.link.signing_options import add_signing_options, signing_key
+from companion.mavlink.signing import SigningError, fingerprint, write_key_file
+from companion.mavlink.signing_options import add_signing_options, signing_key
 
 __all__ = ["main"]
 
 
 def _fly(args: argparse.Namespace) -> int:
-    from .app import Flight, FlightOptions
+    from .flight import Flight, FlightOptions, run_flight
     from .mission import load_mission
 
     try:
@@ -52,23 +51,7 @@ def _fly(args: argparse.Namespace) -> int:
     opts = FlightOptions(connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
                          out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet, signing_key=key,
                          connect_timeout_s=args.connect_timeout)
-    return asyncio.run(_run_flight(Flight(mission, opts), plots=not args.no_plots))
-
-
-async def _run_flight(flight, plots: bool) -> int:  # type: ignore[no-untyped-def]
-    loop = asyncio.get_running_loop()
-    loop.add_signal_handler(signal.SIGINT, flight.interrupt)
-    loop.add_signal_handler(signal.SIGTERM, flight.interrupt)
-    result = await flight.run()
-    print((flight.folder / "summary.md").read_text())
-    if plots:
-        from .plots import draw_flight
-
-        for p in draw_flight(flight.folder):
-            print(f"plot: {p}")
-    stream = sys.stdout if result.exit_code == 0 else sys.stderr
-    print(f"companion: {result.result}: {result.message} -> {flight.folder}", file=stream, flush=True)
-    return result.exit_code
+    return asyncio.run(run_flight(Flight(mission, opts), plots=not args.no_plots))
 
 
 def _plot(args: argparse.Namespace) -> int:

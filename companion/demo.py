@@ -45,8 +45,7 @@ def start_vehicle(speedup: float, *extra: str) -> tuple[subprocess.Popen[str], i
 
 
 def run_demo(out_dir: Path = Path("flights"), speedup: float = 4.0, controller: str = "ism_do") -> int:
-    from .app import Flight, FlightOptions
-    from .cli import _run_flight
+    from .flight import Flight, FlightOptions, run_flight
     from .mission import load_mission
 
     status = 0
@@ -59,7 +58,7 @@ def run_demo(out_dir: Path = Path("flights"), speedup: float = 4.0, controller: 
             print(f"\n=== {name}: simulated vehicle on udp://127.0.0.1:{port}, {speedup:g}x ===", flush=True)
             t0 = time.monotonic()
             opts = FlightOptions(connect=f"udp://127.0.0.1:{port}", controller=controller, out_dir=out_dir)
-            code = asyncio.run(_run_flight(Flight(mission, opts), plots=True))
+            code = asyncio.run(run_flight(Flight(mission, opts), plots=True))
             print(f"({time.monotonic() - t0:.0f} s wall)")
             status = status or code
         finally:

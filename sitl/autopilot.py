@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from companion.control import quaternion as quat
+from companion.mavlink import modes
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
 from companion.control.reference import attitude_from_force, limit_force
 from companion.control.trajectory import ReferenceFilter
@@ -48,7 +49,7 @@ __all__ = [
 
 
 class Mode(enum.Enum):
-    """The firmware's modes; how each flavour numbers them is in PX4_MODES and COPTER_MODES."""
+    """The firmware's modes; what each flavour calls them is in PX4_NAMES and COPTER_NAMES."""
 
     MANUAL = "manual"
     ALTCTL = "altctl"
@@ -63,33 +64,35 @@ class Mode(enum.Enum):
     """ArduPilot: flies attitude targets while they are fresh, otherwise holds position"""
 
 
-PX4_MODES = {
-    Mode.MANUAL: (1, 0), Mode.ALTCTL: (2, 0), Mode.POSCTL: (3, 0), Mode.TAKEOFF: (4, 2), Mode.HOLD: (4, 3),
-    Mode.MISSION: (4, 4), Mode.RTL: (4, 5), Mode.LAND: (4, 6), Mode.OFFBOARD: (6, 0),
+PX4_NAMES = {
+    Mode.MANUAL: "MANUAL", Mode.ALTCTL: "ALTCTL", Mode.POSCTL: "POSCTL", Mode.TAKEOFF: "TAKEOFF", Mode.HOLD: "HOLD",
+    Mode.MISSION: "MISSION", Mode.RTL: "RTL", Mode.LAND: "LAND", Mode.OFFBOARD: "OFFBOARD",
 }
-"""PX4: ``custom_mode = main << 16 | sub << 24``; DO_SET_MODE param2 = main, param3 = sub"""
+"""each mode's PX4 name; the numbers are in companion.mavlink.modes, shared with the companion"""
 
-COPTER_MODES = {
-    Mode.MANUAL: 0, Mode.ALTCTL: 2, Mode.MISSION: 3, Mode.GUIDED: 4, Mode.HOLD: 5, Mode.RTL: 6, Mode.LAND: 9,
-    Mode.POSCTL: 16,
+COPTER_NAMES = {
+    Mode.MANUAL: "STABILIZE", Mode.ALTCTL: "ALT_HOLD", Mode.MISSION: "AUTO", Mode.GUIDED: "GUIDED",
+    Mode.HOLD: "LOITER", Mode.RTL: "RTL", Mode.LAND: "LAND", Mode.POSCTL: "POSHOLD", Mode.TAKEOFF: "GUIDED",
 }
-"""ArduCopter: ``custom_mode`` and DO_SET_MODE param2 are the mode number (take-off runs in GUIDED);
-GUIDED_NOGPS (20) and BRAKE (17) are accepted as GUIDED and LOITER"""
+"""each mode's ArduCopter name (take-off runs in GUIDED); GUIDED_NOGPS and BRAKE are accepted as GUIDED
+and LOITER"""
+_COPTER_ALIASES = {"GUIDED_NOGPS": Mode.GUIDED, "BRAKE": Mode.HOLD}
 
 
 def custom_mode(mode: Mode, flavour: str) -> int:
     if flavour == "ardupilot":
-        return COPTER_MODES.get(mode, COPTER_MODES[Mode.GUIDED] if mode == Mode.TAKEOFF else 0)
-    main, sub = PX4_MODES.get(mode, (0, 0))
-    return (main << 16) | (sub << 24)
+        return modes.COPTER_MODES[COPTER_NAMES.get(mode, "STABILIZE")]
+    return modes.px4_custom_mode(PX4_NAMES[mode]) if mode in PX4_NAMES else 0
 
 
 def mode_from_command(flavour: str, p2: int, p3: int) -> Mode | None:
     """The mode a DO_SET_MODE asks for (param2, param3), in the flavour's numbering."""
     if flavour == "ardupilot":
-        extra = {20: Mode.GUIDED, 17: Mode.HOLD}
-        return next((m for m, n in COPTER_MODES.items() if n == p2), None) or extra.get(p2)
-    return next((m for m, v in PX4_MODES.items() if v == (p2, p3)), None)
+        name = modes.copter_mode_name(p2)
+        found = next((m for m, n in COPTER_NAMES.items() if n == name and m != Mode.TAKEOFF), None)
+        return found or _COPTER_ALIASES.get(name)
+    name = modes.px4_mode_name((p2 << 16) | (p3 << 24)) if 0 <= p2 < 256 and 0 <= p3 < 256 else ""
+    return next((m for m, n in PX4_NAMES.items() if n == name), None)
 
 
 class LandedState(enum.IntEnum):

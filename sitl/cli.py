@@ -23,8 +23,8 @@ import sys
 from typing import Sequence
 
 from companion.config import ConfigError
-from companion.link.signing import SigningError
-from companion.link.signing_options import add_signing_options, signing_key
+from companion.mavlink.signing import SigningError
+from companion.mavlink.signing_options import add_signing_options, signing_key
 
 from .autopilot import Autopilot, AutopilotParams
 from .scenario import Scenario, load_scenario
@@ -69,7 +69,7 @@ def build(args: argparse.Namespace) -> MavlinkServer:
                                             flavour="ardupilot" if args.flavour == "ardupilot" else "px4"))
     cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
                        origin=args.origin, signing_key=signing_key(args, "sitl"),
-                       wait_for_setpoints_s=args.wait_for_setpoints)
+                       wait_for_setpoints_s=args.wait_for_setpoints, lockstep_period_s=args.lockstep * 1e-3)
     server = MavlinkServer(ap, cfg)
     for name, value in args.param:
         reason = server.params.set(name, value)
@@ -120,6 +120,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="while flying a companion's stream, stop the simulated clock (up to 1 s of wall time) "
                          "when the newest setpoint is older than SECONDS of simulated time: a stalled host "
                          "then does not fly the vehicle without its companion (tests, soaks; 0: off)")
+    ap.add_argument("--lockstep", type=float, default=0.0, metavar="PERIOD_MS", nargs="?", const=10.0,
+                    help="while flying a companion's stream, advance the simulated world only as setpoints arrive, "
+                         "PERIOD_MS (default 10: a 100 Hz companion) per setpoint; --speedup stays the upper "
+                         "bound. Host load then changes how long a flight takes, not what it measures")
     ap.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
     add_signing_options(ap)
     ap.add_argument("--quiet", action="store_true")
@@ -128,6 +132,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error("--speedup must be within 0.05..1000")
     if not (args.wait_for_setpoints == 0 or 0.005 <= args.wait_for_setpoints <= 0.5):
         ap.error("--wait-for-setpoints must be 0 (off) or within 0.005..0.5 s (below the 1 s offboard-loss timeout)")
+    if not (args.lockstep == 0 or 1.0 <= args.lockstep <= 100.0):
+        ap.error("--lockstep must be a period of 1..100 ms")
     try:
         server = build(args)
     except (ConfigError, SigningError) as exc:

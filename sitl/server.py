@@ -15,6 +15,7 @@ becomes messages in :mod:`sitl.telemetry`.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import time
 from collections import Counter, deque
@@ -23,9 +24,9 @@ from typing import Any, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from companion.link.signing import SignatureCheck, enable_signing, is_signed
-from companion.link.udp import UdpEndpoint
-from companion.link.wire import new_parser, parse_datagram
+from companion.mavlink.signing import SignatureCheck, enable_signing, is_signed
+from companion.mavlink.udp import UdpEndpoint
+from companion.mavlink.wire import new_parser, parse_datagram
 
 from .autopilot import Autopilot, MavResult, Severity
 from .parameters import ParamTable, build_parameters
@@ -76,7 +77,15 @@ class ServerConfig:
     counterpart of PX4's lockstep; a real vehicle never waits, so tests of link outages leave it
     off. Counted: ``setpoint_waits``, ``waited_ms``."""
     max_wait_wall_s: float = 1.0
-    """after this long the stream is taken as gone, not late: time runs on (to the failsafe)"""
+    """after this long the stream is taken as gone, not late: time runs on (to the failsafe).
+    Counted only while this process is awake (a stall of the whole machine adds one loop pass)."""
+    lockstep_period_s: float = 0.0
+    """0: off. Otherwise **lockstep**: while the vehicle flies a companion's stream, the world advances
+    only as setpoints arrive — each setpoint, stamped with the telemetry it was computed from, lets
+    it run to that stamp plus one period, where it stops and sends its attitude and IMU at once, so
+    the companion's next tick has the state it waits for (PX4 and its simulators work this way).
+    Host load then changes how long a flight takes, not what it measures. ``speedup`` stays the
+    upper bound; a stream gone for ``max_wait_wall_s`` (awake) hands time back to the failsafes."""
     signing_key: bytes | None = None
     """MAVLink 2 signing: sign everything sent, and act only on frames signed with this key"""
 
@@ -127,6 +136,7 @@ class MavlinkServer:
         self._gave_up_waiting_on = math.nan
         self.longest_wait_s = 0.0
         """the longest the world waited for a setpoint [wall s]"""
+        self._setpoint_arrived = asyncio.Event()
         self._handlers: dict[str, Callable[[Any], None]] = {
             "COMMAND_LONG": self._command_long,
             "COMMAND_INT": self._command_int,
@@ -178,6 +188,8 @@ class MavlinkServer:
                 msg = enc[msg_id]()
                 if msg is not None:  # None: nothing valid to say now (e.g. no position)
                     self.send(msg)
+                    if msg_id == mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION:
+                        self._state_sent_ms = self.telemetry.time_boot_ms
                 interval = self._intervals[msg_id]
                 self._due[msg_id] = due + interval if t - due < interval else t + interval
         self._next_due = min(self._due.values(), default=math.inf)
@@ -359,6 +371,7 @@ class MavlinkServer:
             self._acted_on_t = time_boot_ms * 1e-3
         else:
             self._acted_on_t = self.ap.t
+        self._setpoint_arrived.set()
 
     def _set_position_target(self, msg: Any) -> None:
         if not self._for_us(msg):
@@ -486,14 +499,21 @@ class MavlinkServer:
                 now = time.monotonic()
                 if self._waiting_for_setpoints(now):
                     wall0, sim0 = now - dt / speedup, ap.t  # resume from here, with no catching up
-                    await asyncio.sleep(0.001)
+                    self._setpoint_arrived.clear()
+                    if self._setpoint_late():  # the datagram handler sets the event
+                        with contextlib.suppress(TimeoutError):
+                            await asyncio.wait_for(self._setpoint_arrived.wait(), 0.02)
                     continue
                 target = sim0 + (now - wall0) * speedup
                 due_wall = wall0 + (ap.t + dt - sim0) / speedup
-                if now >= due_wall:
+                locked = self._lockstep_active()
+                if locked:
+                    # the companion sets the pace: run to the next stop at once, no wall-clock pacing
+                    target = max(target, self._acted_on_t + self.config.lockstep_period_s)
+                elif now >= due_wall:
                     lateness.append(now - due_wall)
                 behind = target - ap.t
-                if behind > self.config.max_catchup_wall_s * speedup:
+                if not locked and behind > self.config.max_catchup_wall_s * speedup:
                     # stalled (a busy host) or too slow for the speed-up: pause the world instead of
                     # racing through it; counted, and the lost simulated time summed
                     self.stats["overruns"] += 1
@@ -514,6 +534,8 @@ class MavlinkServer:
                 if now - last_expire > 1.0:
                     self._expire_peers()
                     last_expire = now
+                if locked:
+                    wall0, sim0 = time.monotonic() - dt / speedup, ap.t  # paced by setpoints, not the wall
                 next_wall = wall0 + (ap.t + dt - sim0) / speedup
                 await asyncio.sleep(max(0.0, next_wall - time.monotonic()))
         finally:
@@ -522,20 +544,37 @@ class MavlinkServer:
                 self.transport = None
 
 
-    def _setpoint_late(self) -> bool:
-        ap, wait_s = self.ap, self.config.wait_for_setpoints_s
-        return (wait_s > 0 and ap.follows_stream and ap.t - self._acted_on_t > wait_s
+    def _lockstep_active(self) -> bool:
+        ap = self.ap
+        return (self.config.lockstep_period_s > 0 and ap.follows_stream
                 and self._acted_on_t != self._gave_up_waiting_on)
 
+    def _setpoint_late(self) -> bool:
+        ap, cfg = self.ap, self.config
+        if not ap.follows_stream or self._acted_on_t == self._gave_up_waiting_on:
+            return False
+        if cfg.lockstep_period_s > 0:
+            return ap.t >= self._acted_on_t + cfg.lockstep_period_s - 0.5 * ap.dt
+        return cfg.wait_for_setpoints_s > 0 and ap.t - self._acted_on_t > cfg.wait_for_setpoints_s
+
     def _waiting_for_setpoints(self, now: float) -> bool:
-        """True while the world waits for a late setpoint (see ``ServerConfig.wait_for_setpoints_s``)."""
+        """True while the world waits for a late setpoint (``ServerConfig.wait_for_setpoints_s``) or
+        for the next one in lockstep (``ServerConfig.lockstep_period_s``)."""
         late = self._setpoint_late()
         if late and self._wait_start is None:
-            self._wait_start, self._wait_repeat_due = now, now
+            self._wait_start, self._wait_repeat_due, self._wait_awake_s = now, now + 0.02, 0.0
+            self._wait_checked = now
             self.stats["setpoint_waits"] += 1
-        if late and now - (self._wait_start or now) > self.config.max_wait_wall_s:
-            self._gave_up_waiting_on = self._acted_on_t  # gone, not late: time runs on
-            late = False
+            if self.config.lockstep_period_s > 0:
+                self._send_state_now()
+        if late:
+            # awake time only: a stall of the whole machine (both processes) is not the stream going
+            self._wait_awake_s += min(now - self._wait_checked, 0.02)
+            self._wait_checked = now
+            if self._wait_awake_s > self.config.max_wait_wall_s:
+                self._gave_up_waiting_on = self._acted_on_t  # gone, not late: time runs on
+                self.stats["lockstep_gave_up"] += 1
+                late = False
         if late:
             if now >= self._wait_repeat_due:
                 self._wait_repeat_due = now + 0.02
@@ -547,6 +586,24 @@ class MavlinkServer:
             self.stats["waited_ms"] += round(waited * 1e3)
             self.longest_wait_s = max(self.longest_wait_s, waited)
         return False
+
+    _wait_awake_s = 0.0
+    _wait_checked = 0.0
+
+    def _send_state_now(self) -> None:
+        """Lockstep: the state at the stop, now, unless this instant's attitude was already sent."""
+        stamp = self.telemetry.time_boot_ms
+        if stamp == self._state_sent_ms:
+            return
+        self._state_sent_ms = stamp
+        enc = self.telemetry.encoders
+        for msg_id in (mavlink.MAVLINK_MSG_ID_HIGHRES_IMU, mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION):
+            if msg_id in self._intervals:
+                msg = enc[msg_id]()
+                if msg is not None:
+                    self.send(msg)
+
+    _state_sent_ms = -1
 
     def _repeat_state(self) -> None:
         """While waiting: the newest attitude and position again, same stamp (the clock stood still)."""

@@ -109,11 +109,11 @@ class Telemetry:
 
     @property
     def time_boot_ms(self) -> int:
-        return int(self.ap.t * 1000.0) & 0xFFFFFFFF
+        return int(round(self.ap.t * 1000.0)) & 0xFFFFFFFF  # round: t is a sum of 1 ms steps
 
     @property
     def time_usec(self) -> int:
-        return int(self.ap.t * 1e6)
+        return int(round(self.ap.t * 1e6))
 
     # --- messages --------------------------------------------------------------------------
 

@@ -8,15 +8,15 @@ import math
 from collections import Counter
 from typing import Callable
 
-from companion.clock import VehicleClock
+from companion.link.clock import VehicleClock
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
-from companion.stamps import Admitted, StampGate
-from companion.state import VehicleState
+from companion.link.stamps import Admitted, StampGate
+from companion.link.state import VehicleState
 
 from .flavour import Flavour
 
-__all__ = ["LinkError", "VehicleLink", "TrafficHook", "open_link", "parse_url"]
+__all__ = ["LinkError", "VehicleLink", "TrafficHook"]
 
 TrafficHook = Callable[[bytes], None]
 """called with every raw datagram sent or received (for the .tlog)"""
@@ -24,18 +24,6 @@ TrafficHook = Callable[[bytes], None]
 
 class LinkError(RuntimeError):
     """The vehicle did not answer, refused, or went away."""
-
-
-def parse_url(url: str) -> tuple[str, str, int]:
-    """``udp://HOST:PORT`` / ``udpout://HOST:PORT`` (send to a vehicle that listens there) or
-    ``udpin://HOST:PORT`` (listen there for a vehicle that sends first, as PX4 SITL does)."""
-    scheme, sep, rest = url.partition("://")
-    if not sep:
-        scheme, rest = "udp", url
-    host, _, port = rest.rpartition(":")
-    if scheme not in ("udp", "udpout", "udpin") or not port.isdigit():
-        raise ValueError(f"expected udp://HOST:PORT, udpout://HOST:PORT or udpin://HOST:PORT, got {url!r}")
-    return ("in" if scheme == "udpin" else "out"), host or "127.0.0.1", int(port)
 
 
 class VehicleLink(abc.ABC):
@@ -59,9 +47,13 @@ class VehicleLink(abc.ABC):
             self.state.restart_time()
         return admitted
 
+    telemetry_event: asyncio.Event
+    """set whenever a believed stamp arrives (the control loop ticks on it: lockstep)"""
+
     def _observe(self, admitted: Admitted, wall: float) -> None:
         if admitted.feeds_clock:
             self.clock.observe(admitted.t_s, wall)
+            self.telemetry_event.set()
 
     def _valid(self, accepted: bool) -> bool:
         """Pass through a ``VehicleState.set_*`` result, counting a refused sample."""
@@ -144,17 +136,3 @@ class VehicleLink(abc.ABC):
         """Vehicle seconds since the older of position and attitude (inf before any)."""
         t = min(self.state.t_pos, self.state.t_att)
         return math.inf if not math.isfinite(t) else self.clock.age(t, wall_t)
-
-
-def open_link(
-    url: str, backend: str = "pymavlink", traffic: TrafficHook | None = None, **options: object
-) -> VehicleLink:
-    if backend == "pymavlink":
-        from .pymavlink_link import PymavlinkLink
-
-        return PymavlinkLink(url, traffic=traffic, **options)  # type: ignore[arg-type]
-    if backend == "mavsdk":
-        from .mavsdk_link import MavsdkLink
-
-        return MavsdkLink(url, traffic=traffic, **options)  # type: ignore[arg-type]
-    raise ValueError(f"unknown backend {backend!r}; expected pymavlink or mavsdk")

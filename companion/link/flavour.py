@@ -4,19 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from companion.mavlink.modes import (COPTER_MODES, MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4, PX4_MODES,
+                                     copter_mode_name, px4_mode_name)
+
 __all__ = ["Flavour", "PX4", "ARDUPILOT", "flavour_for"]
-
-MAV_AUTOPILOT_ARDUPILOTMEGA = 3
-MAV_AUTOPILOT_PX4 = 12
-
-_PX4_MODES = {
-    (1, 0): "MANUAL", (2, 0): "ALTCTL", (3, 0): "POSCTL", (4, 2): "TAKEOFF", (4, 3): "HOLD", (4, 4): "MISSION",
-    (4, 5): "RTL", (4, 6): "LAND", (6, 0): "OFFBOARD", (5, 0): "ACRO", (7, 0): "STABILIZED",
-}
-_COPTER_MODES = {
-    0: "STABILIZE", 1: "ACRO", 2: "ALT_HOLD", 3: "AUTO", 4: "GUIDED", 5: "LOITER", 6: "RTL", 9: "LAND",
-    16: "POSHOLD", 17: "BRAKE", 20: "GUIDED_NOGPS",
-}
 
 
 @dataclass(frozen=True)
@@ -29,14 +20,12 @@ class Flavour:
     offboard_names: tuple[str, ...]
 
     def mode_name(self, custom_mode: int) -> str:
-        if self.name == "px4":
-            main, sub = (custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF
-            return _PX4_MODES.get((main, sub), f"PX4_{main}_{sub}")
-        return _COPTER_MODES.get(custom_mode, f"MODE_{custom_mode}")
+        return px4_mode_name(custom_mode) if self.name == "px4" else copter_mode_name(custom_mode)
 
 
-PX4 = Flavour("px4", (6, 0), (4, 3), (4, 6), ("OFFBOARD",))
-ARDUPILOT = Flavour("ardupilot", (4, 0), (5, 0), (9, 0), ("GUIDED", "GUIDED_NOGPS"))
+PX4 = Flavour("px4", PX4_MODES["OFFBOARD"], PX4_MODES["HOLD"], PX4_MODES["LAND"], ("OFFBOARD",))
+ARDUPILOT = Flavour("ardupilot", (COPTER_MODES["GUIDED"], 0), (COPTER_MODES["LOITER"], 0), (COPTER_MODES["LAND"], 0),
+                    ("GUIDED", "GUIDED_NOGPS"))
 
 
 def flavour_for(autopilot: int) -> Flavour | None:

@@ -30,13 +30,14 @@ from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from mavsdk.plugins.mavlink_direct import MavlinkMessage
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from companion.clock import VehicleClock
-from companion.stamps import StampGate
+from companion.link.clock import VehicleClock
+from companion.link.stamps import StampGate
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
-from companion.state import VehicleState
+from companion.link.state import VehicleState
 
-from .base import LinkError, TrafficHook, VehicleLink, parse_url
+from .base import LinkError, TrafficHook, VehicleLink
+from .url import parse_url
 from .flavour import PX4, Flavour
 
 __all__ = ["MavsdkLink"]
@@ -71,6 +72,7 @@ class MavsdkLink(VehicleLink):
         self.flavour: Flavour | None = None
         self.stats: Counter[str] = Counter()
         self.gate = StampGate(counts=self.stats)
+        self.telemetry_event = asyncio.Event()
         self._sdk: Mavsdk | None = None
         self._tap: asyncio.DatagramTransport | None = None
         self._system: Any = None

@@ -21,17 +21,18 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from companion.clock import VehicleClock
-from companion.stamps import StampGate
+from companion.link.clock import VehicleClock
+from companion.link.stamps import StampGate
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
-from companion.state import VehicleState
+from companion.link.state import VehicleState
 
-from .base import LinkError, TrafficHook, VehicleLink, parse_url
+from .base import LinkError, TrafficHook, VehicleLink
+from .url import parse_url
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
-from .signing import SignatureCheck, enable_signing, fingerprint
-from .udp import UdpEndpoint
-from .wire import new_parser, parse_datagram
+from companion.mavlink.signing import SignatureCheck, enable_signing, fingerprint
+from companion.mavlink.udp import UdpEndpoint
+from companion.mavlink.wire import new_parser, parse_datagram
 
 __all__ = ["PymavlinkLink"]
 
@@ -59,6 +60,7 @@ class PymavlinkLink(VehicleLink):
         self.flavour: Flavour | None = None
         self.stats: Counter[str] = Counter()
         self.gate = StampGate(counts=self.stats)
+        self.telemetry_event = asyncio.Event()
         self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
         self.parser = new_parser()
         self.signature_check: SignatureCheck | None = None

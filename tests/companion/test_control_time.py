@@ -4,11 +4,11 @@ that was not seen to pass (a paused simulated vehicle, a telemetry gap)."""
 import math
 
 from companion.control.params import PositionGains, ReferenceParams, TrajectoryParams, VehicleParams
-from companion.control_time import ControllerTime, default_lead_s
-from companion.offboard import OffboardController
-from companion.safety import SetpointGuard
-from companion.state import VehicleState
-from companion.thrust_scale import ThrustScaleEstimator
+from companion.flight.control_time import ControllerTime, default_lead_s
+from companion.flight.offboard import OffboardController
+from companion.flight.guard import SetpointGuard
+from companion.link.state import VehicleState
+from companion.flight.thrust_scale import ThrustScaleEstimator
 
 PERIOD = 0.01
 LEAD = default_lead_s(PERIOD)
@@ -100,7 +100,7 @@ def test_the_reference_does_not_run_ahead_of_a_vehicle_that_stood_still():
 def test_propagation_carries_a_sample_forward_exactly_under_constant_acceleration():
     """p(t) = p0 + v0 t + a t^2 / 2 with a = f + g e3: hovering (f = -g e3) stays put; a
     vehicle braking at 4 m/s^2 from 2 m/s is carried 30 ms forward exactly."""
-    from companion.offboard import propagate
+    from companion.flight.offboard import propagate
 
     g = 9.81
     assert propagate((1.0, 2.0, -3.0), (0.0, 0.0, 0.0), (0.0, 0.0, -g), g, 0.03) == (

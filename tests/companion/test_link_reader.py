@@ -48,7 +48,7 @@ def test_the_udp_endpoint_reads_every_waiting_datagram_in_one_wake_up():
     import socket
     import time
 
-    from companion.link.udp import UdpEndpoint
+    from companion.mavlink.udp import UdpEndpoint
 
     async def main() -> tuple[list[int], list[int]]:
         got: list[bytes] = []

@@ -2,10 +2,10 @@
 
 import math
 
-from companion.clock import VehicleClock
+from companion.link.clock import VehicleClock
 from companion.control import quaternion as quat
-from companion.safety import SetpointGuard
-from companion.thrust_scale import ThrustScaleEstimator
+from companion.flight.guard import SetpointGuard
+from companion.flight.thrust_scale import ThrustScaleEstimator
 
 
 def test_clock_learns_the_speedup_and_schedules_ticks():
@@ -137,7 +137,7 @@ def test_clock_reanchors_on_a_repeated_stamp_from_a_vehicle_that_waited():
 def test_silence_counts_only_while_awake():
     """A watchdog checking every 20 ms: a real outage counts at full speed; a 1 s stall of this
     host (no check ran, nothing could arrive) counts as one 40 ms step."""
-    from companion.silence import AwakeSilence
+    from companion.flight.silence import AwakeSilence
 
     s = AwakeSilence(max_step_s=0.04)
     assert math.isclose(s.check(100.0, 100.005), 0.005)  # a packet 5 ms ago

@@ -9,11 +9,11 @@ import struct
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from companion.link.signing import (
+from companion.mavlink.signing import (
     SignatureCheck, SigningError, enable_signing, fingerprint, key_from_text, load_key, read_key_file,
     signing_timestamp, write_key_file,
 )
-from companion.link.wire import new_parser, parse_datagram
+from companion.mavlink.wire import new_parser, parse_datagram
 
 KEY = bytes(range(32))
 OTHER = bytes(range(1, 33))

@@ -5,10 +5,10 @@ replaces it; a vehicle that really restarts is followed once its old time base h
 import math
 import time
 
-from companion.clock import VehicleClock
-from companion.stamps import StampGate
-from companion.state import VehicleState
-from companion.control_time import ControllerTime, default_lead_s
+from companion.link.clock import VehicleClock
+from companion.link.stamps import StampGate
+from companion.link.state import VehicleState
+from companion.flight.control_time import ControllerTime, default_lead_s
 
 PERIOD = 0.01
 

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.link.pymavlink_link import MAX_PARAMS, PymavlinkLink
-from companion.state import MAX_POSITION_M, MAX_RATE_RAD_S, MAX_SPECIFIC_FORCE_M_S2, MAX_SPEED_M_S
+from companion.link.state import MAX_POSITION_M, MAX_RATE_RAD_S, MAX_SPECIFIC_FORCE_M_S2, MAX_SPEED_M_S
 
 from .strategies import FUZZ, datagram
 from .watchdog import no_hang

@@ -52,7 +52,7 @@ def _attacks(mitm: Mitm) -> dict[str, int]:
 
 
 def test_no_timestamp_moves_or_stalls_the_companion_clock(sitl, companion):
-    s = sitl(*WAIT, speedup=4.0)
+    s = sitl("--lockstep", speedup=8.0)
     host, port = s.url.split(":")
     mitm = Mitm((host, int(port)))
     try:

@@ -16,7 +16,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
-from companion.link.signing import enable_signing, write_key_file
+from companion.mavlink.signing import enable_signing, write_key_file
 
 from .test_companion_e2e import SPEEDUP, segments
 from .test_link_faults import Observer

@@ -6,7 +6,7 @@ A flight folder holds
 - ``traffic.tlog``: every datagram sent and received, each prefixed with its 8-byte big-endian
   microsecond UNIX time (the format MAVProxy writes and pymavlink's ``mavlogdump``/MAVExplorer read);
 - ``health.csv``: every 10 vehicle seconds, the companion's memory, CPU, receive queue, message
-  and setpoint rates (:mod:`companion.health`);
+  and setpoint rates (:mod:`companion.flight.health`);
 - ``segments.json`` and ``summary.md``: per mission step, RMS and peak position error, peak tilt,
   the final external-force estimate and the thrust-scale estimate.
 
@@ -30,7 +30,7 @@ from companion.control import quaternion as quat
 
 from .health import HEALTH_COLUMNS
 from .offboard import Tick
-from .state import VehicleState
+from companion.link.state import VehicleState
 
 __all__ = ["COLUMNS", "SegmentStats", "FlightRecorder"]
 
@@ -194,7 +194,7 @@ class FlightRecorder:
         self.rows += 1
 
     def health(self, row: tuple) -> None:
-        """A row of ``health.csv`` (:mod:`companion.health`)."""
+        """A row of ``health.csv`` (:mod:`companion.flight.health`)."""
         if self._health is None:
             self._health = open(self.folder / "health.csv", "w", newline="", buffering=1)
             csv.writer(self._health).writerow(HEALTH_COLUMNS)

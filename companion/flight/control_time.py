@@ -1,7 +1,7 @@
 """The controller's time: vehicle time, but never further ahead of the newest telemetry than a
 small lead.
 
-The control loop wakes on the clock line (:class:`~companion.clock.VehicleClock`), which
+The control loop wakes on the clock line (:class:`~companion.link.clock.VehicleClock`), which
 extrapolates the vehicle's clock from past packets. Integrating the controller on that line alone
 assumes the vehicle's clock kept running. A simulated vehicle may stop it (a stalled host, or
 ``sitl --wait-for-setpoints`` waiting for us); a real one never does, but its telemetry can stop

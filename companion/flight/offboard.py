@@ -20,8 +20,8 @@ from companion.control.trajectory import PositionReference, ReferenceFilter
 from companion.control.vector import Vec3, add, scale
 
 from .control_time import ControllerTime, default_lead_s
-from .safety import SetpointGuard
-from .state import VehicleState
+from .guard import SetpointGuard
+from companion.link.state import VehicleState
 from .thrust_scale import ThrustScaleEstimator
 
 __all__ = ["Setpoint", "Tick", "OffboardController", "propagate", "MAX_PROPAGATION_S"]
@@ -115,7 +115,7 @@ class OffboardController:
         return d < 1e-3 and math.hypot(*f.vel_ned_m_s) < 1e-3
 
     def update(self, state: VehicleState, t_line_s: float) -> tuple[Tick | None, bool]:
-        """Advance to the controller's time (see :mod:`companion.control_time`) on the newest
+        """Advance to the controller's time (see :mod:`companion.flight.control_time`) on the newest
         state: ``(tick, True)`` if it moved, ``(the previous tick, False)`` if there was no new
         vehicle time to step (its setpoint is to be re-sent)."""
         steps = self.time.advance(t_line_s, state.t)

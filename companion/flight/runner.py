@@ -1,15 +1,16 @@
-"""A flight: link, control loop, streamer, watchdog and mission runner under one TaskGroup.
+"""A flight: link, control loop, streamer, watchdog and mission under one TaskGroup.
 
-- **reader** (``link.run``): telemetry into :class:`~companion.state.VehicleState`, heartbeats out;
-- **control loop**: a fixed rate *in vehicle time* (sleeps until the vehicle clock reaches the next
-  tick, so it follows the simulated vehicle's speed-up); computes a checked setpoint while the
-  controller is engaged and records a row every tick;
+- **reader** (``link.run``): telemetry into :class:`~companion.link.state.VehicleState`, heartbeats out;
+- **control loop**: a fixed rate in vehicle time, ticked by the telemetry's samples
+  (:mod:`.pacing`); computes a checked setpoint while the controller is engaged and records a row
+  every tick;
 - **streamer**: sends each new setpoint the moment it exists (and nothing stale);
-- **watchdog**: position or attitude older than ``telemetry_timeout_s`` (vehicle time) -> stop
-  setpoints and tell the autopilot to hold; nothing at all for ``link_lost_s`` (wall) -> the flight
-  ends with :class:`LinkLost`; the autopilot leaving offboard while we fly it -> abort;
-- **mission runner**: the steps; on an interrupt (SIGINT) or an abort it stops streaming, commands
-  hold, then land, and waits for the vehicle to disarm — it never just goes silent in the air.
+- **watchdog**: samples the link every 20 ms and carries out what the judge
+  (:mod:`.supervisor`) decides: pause setpoints on stale telemetry, command hold, end the flight
+  when the link is lost or the vehicle leaves its safety volume;
+- **mission**: the steps (:mod:`.steps`); on an interrupt (SIGINT) or an abort it stops streaming,
+  commands hold, then land, and waits for the vehicle to disarm — it never just goes silent in the
+  air — and puts back every autopilot parameter it changed (:mod:`.prepare`).
 """
 
 from __future__ import annotations
@@ -20,37 +21,34 @@ import dataclasses
 import datetime
 import math
 import time
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Awaitable
 
 from companion.control.params import PositionGains
+from companion.link import LinkError, VehicleLink, open_link
+from companion.mavlink.signing import fingerprint
+from companion.mission import Mission
 
+from . import supervisor
+from .errors import EXIT_CODES, Interrupted, LinkLost, MissionAbort
+from .guard import SetpointGuard
 from .health import HealthMonitor
-from .link import LinkError, VehicleLink, open_link
-from .link.signing import fingerprint
-from .mission import Mission, Step
 from .offboard import OffboardController, Setpoint
+from .pacing import TickGrid
+from .prepare import ParamChanges, thrust_scale
 from .recorder import FlightRecorder
-from .safety import SetpointGuard
 from .silence import AwakeSilence
+from .steps import run_step
 from .thrust_scale import ThrustScaleEstimator
 
-__all__ = ["FlightOptions", "FlightResult", "Flight", "LinkLost", "MissionAbort", "EXIT_CODES"]
+__all__ = ["FlightOptions", "FlightResult", "Flight", "wall_timeout_s"]
 
-EXIT_CODES = {"completed": 0, "aborted": 1, "link lost": 3, "interrupted": 130}
-
-
-class LinkLost(RuntimeError):
-    """No telemetry from the vehicle for longer than the link-lost bound."""
-
-
-class MissionAbort(RuntimeError):
-    """The mission cannot go on (refused command, offboard left, timeout)."""
-
-
-class _Interrupted(Exception):
-    pass
+PRECISE_SLEEP_S = 0.0015
+WATCHDOG_S = 0.02
+"""wall seconds between the watchdog's checks"""
+STALLED_S = 0.05
+"""wall seconds a periodic task woke late by that mean this process was stalled"""
 
 
 @dataclass
@@ -80,39 +78,12 @@ class FlightResult:
         return EXIT_CODES.get(self.result, 1)
 
 
-PRECISE_SLEEP_S = 0.0015
-RESYNC_TICKS = 5
-"""the control loop resyncs to the vehicle's clock when it is this many ticks off it"""
-WATCHDOG_S = 0.02
-"""wall seconds between the watchdog's checks"""
-STALLED_S = 0.05
-"""wall seconds a periodic task woke late by that mean this process was stalled"""
-MIN_SILENCE_S = 0.15
-"""wall seconds of silence below which telemetry is never called stale (sped-up simulations)"""
-MIN_HOLD_SILENCE_S = 0.5
-"""wall seconds of silence below which we never command hold: sped up, a host stall freezes the
-simulated vehicle for a few hundred ms of wall time, which the clock line reads as seconds of
-vehicle time (a real vehicle, at rate 1, reaches ``stale_hold_s`` first)"""
-
-
 def wall_timeout_s(timeout_v_s: float, rate: float) -> float:
     """The wall-clock bound on a mission timeout of ``timeout_v_s`` vehicle seconds: twice what the
     vehicle's rate (bounded to 0.25..1) makes it, plus 2 s. Timeouts count vehicle time, which
     only telemetry stamps move; this bound fires even if those stamps stop or lie, so no stamp
     can keep a mission waiting for ever (a simulated vehicle slower than 0.5x may meet it first)."""
     return 2.0 * timeout_v_s / min(max(rate, 0.25), 1.0) + 2.0
-
-
-async def _sleep_until(wall_t: float, precise_s: float = PRECISE_SLEEP_S) -> None:
-    """asyncio.sleep rounds its wake-up up to whole milliseconds (epoll); for the last
-    ``precise_s`` a blocking nanosleep lands the tick within ~0.1 ms. The loop is blocked only for
-    time it would have spent idle; datagrams wait in the socket buffer (stamped on arrival)."""
-    remaining = wall_t - time.monotonic()
-    if remaining > precise_s:
-        await asyncio.sleep(remaining - precise_s)
-    remaining = wall_t - time.monotonic()
-    if remaining > 0:
-        time.sleep(remaining)
 
 
 class Flight:
@@ -132,16 +103,15 @@ class Flight:
         self.link: VehicleLink = open_link(opt.connect, opt.backend, traffic=self.recorder.traffic, **link_options)
         safety = mission.safety
         self.guard = SetpointGuard(math.radians(safety.max_tilt_deg), math.radians(safety.max_rate_deg_s))
+        self.limits = supervisor.Limits(safety.telemetry_timeout_s, safety.stale_hold_s, safety.link_lost_s)
+        self.watch = supervisor.Watchdog()
+        self.params = ParamChanges(self.link, self.log)
         self.control: OffboardController | None = None
         self.engaged = False
         """the controller computes setpoints (streaming before and during offboard)"""
         self.expect_offboard = False
-        self.stale = False
-        self.outages = 0
-        """episodes of stale telemetry"""
-        self.stale_for_s = 0.0
-        self.longest_outage_s = 0.0
-        self.stale_until_wall = -math.inf
+        self.skipped: list[str] = []
+        """mission steps that could not be flown on this vehicle (e.g. a simulated force on a real one)"""
         self._background: set[asyncio.Task[None]] = set()
         self.finished = asyncio.Event()
         self.interrupted = asyncio.Event()
@@ -149,12 +119,22 @@ class Flight:
         self._setpoint: Setpoint | None = None
         self.sent = 0
         self.rejected = 0
-        self.late_ticks = 0
+        self.grid = TickGrid(1.0 / self.rate_hz)
         self.health = HealthMonitor()
         self.tick_periods: list[float] = []
         """wall-clock spacing of sent setpoints (bounded), for the jitter benchmark"""
         self._last_sent_wall = math.nan
         self.failure: str | None = None
+        self._breach: str | None = None
+
+    @property
+    def stale(self) -> bool:
+        return self.watch.stale
+
+    @property
+    def controller(self) -> OffboardController:
+        assert self.control is not None, "the controller is made before the first step"
+        return self.control
 
     def log(self, text: str) -> None:
         if not self.opt.quiet:
@@ -163,7 +143,7 @@ class Flight:
             print(f"[{stamp}] {text}", flush=True)
 
     def interrupt(self) -> None:
-        """SIGINT: the runner holds, lands and disarms; a second one gives up waiting."""
+        """SIGINT: the mission holds, lands and disarms; a second one gives up waiting."""
         if self.interrupted.is_set():
             self.finished.set()
         self.interrupted.set()
@@ -181,102 +161,86 @@ class Flight:
                         tg.create_task(self._watchdog())
                         tg.create_task(self._control_loop())
                         tg.create_task(self._streamer())
-                        runner = tg.create_task(self._mission())
-                    result, message = runner.result()
+                        mission = tg.create_task(self._mission())
+                    result, message = mission.result()
                 except* LinkLost as eg:
                     result, message = "link lost", str(eg.exceptions[0])
                 except* LinkError as eg:
                     result, message = "aborted", str(eg.exceptions[0])
+                if self.params.originals:  # the mission ended before it could put them back
+                    await self._restore_params()
         finally:
             summary = self._summary(result, message)
             self.recorder.close(summary)
         return FlightResult(result, message, self.folder, summary)
 
+    async def _restore_params(self) -> None:
+        with contextlib.suppress(Exception):
+            await asyncio.wait_for(self.params.restore(), 10.0)
+
+    def _in_background(self, command: Awaitable[None]) -> None:
+        async def best_effort() -> None:
+            with contextlib.suppress(LinkError):
+                await command
+
+        task = asyncio.get_running_loop().create_task(best_effort())
+        self._background.add(task)
+        task.add_done_callback(self._background.discard)
+
     async def _watchdog(self) -> None:
-        safety = self.mission.safety
-        hold_requested = False
         woke = time.monotonic()
-        # silence counted only while this process was awake to hear it (companion/silence.py)
+        # silence counted only while this process was awake to hear it (silence.py)
         heard_nothing, heard_no_navigation = AwakeSilence(2 * WATCHDOG_S), AwakeSilence(2 * WATCHDOG_S)
         while not self.finished.is_set():
             await asyncio.sleep(WATCHDOG_S)
-            st = self.link.state
+            st, link = self.link.state, self.link
             now, due = time.monotonic(), woke + WATCHDOG_S
             woke = now
             if now - due > STALLED_S:
                 # this process was stalled: what arrived meanwhile is still unread in the socket,
                 # so nothing can be judged old yet; the reader drains it before the next check
                 continue
-            silent_link = heard_nothing.check(st.wall_last, now)
-            silent_nav = heard_no_navigation.check(min(st.wall_pos, st.wall_att), now)
-            # from the first message on (wait_connected bounds the wait for the first one)
-            if st.sysid and math.isfinite(st.wall_last) and silent_link > safety.link_lost_s:
-                raise LinkLost(f"vehicle link lost: no telemetry for {silent_link:.1f} s "
-                               f"(bound {safety.link_lost_s:g} s)")
-            if not self.engaged:
-                self.stale = False
-                continue
-            age = self.link.telemetry_age(now)
-            # stale: too old in vehicle time AND really silent on the wire; sped up, a short pause
-            # of the (simulated) vehicle itself would otherwise look like seconds of vehicle time
-            stale = age > safety.telemetry_timeout_s and silent_nav > max(
-                safety.telemetry_timeout_s / max(self.link.clock.rate, 1e-3), MIN_SILENCE_S)
-            # behind: datagrams keep coming but wait in our own queue (this process starved of CPU);
-            # measured on our side of the socket, so a pausing vehicle cannot fake it
-            behind_s = self.link.rx_lag_s * self.link.clock.rate
-            behind = behind_s > safety.telemetry_timeout_s
-            if behind:
-                stale, age = True, max(age, behind_s)
-            if stale and not self.stale:
-                self.outages += 1
-                why = "queued here" if behind else "stale"
-                self.log(f"telemetry {why} ({age:.2f} s): setpoints paused")
-            elif self.stale and not stale:
-                self.stale_until_wall = now
-                self.log(f"telemetry back after {self.stale_for_s:.2f} s")
-            if stale:
-                self.stale_for_s = age
-                self.longest_outage_s = max(self.longest_outage_s, age)
-                # hold only for real silence: not for a backlog in our own queue (it clears in one
-                # pass of the reader) nor for a stall of this host (not counted, above)
-                if (age > safety.stale_hold_s and not hold_requested and silent_nav > max(
-                        safety.stale_hold_s / max(self.link.clock.rate, 1e-3), MIN_HOLD_SILENCE_S)):
-                    hold_requested = True
-                    self.log(f"telemetry stale for {age:.2f} s: commanding hold")
-                    # in the background: the command retries while the link is down
-                    task = asyncio.get_running_loop().create_task(self._best_effort(self.link.hold()))
-                    self._background.add(task)
-                    task.add_done_callback(self._background.discard)
-            self.stale = stale
+            w = supervisor.Watch(
+                wall_s=now, connected=bool(st.sysid) and math.isfinite(st.wall_last),
+                silent_link_s=heard_nothing.check(st.wall_last, now),
+                silent_nav_s=heard_no_navigation.check(min(st.wall_pos, st.wall_att), now),
+                telemetry_age_s=link.telemetry_age(now), behind_s=link.rx_lag_s * link.clock.rate,
+                rate=link.clock.rate, engaged=self.engaged,
+                breach=self._volume_breach() if self.expect_offboard else None)
+            verdict = supervisor.judge(self.watch, w, self.limits)
+            self.watch = verdict.state
+            for text in verdict.log:
+                self.log(text)
+            if verdict.link_lost:
+                raise LinkLost(verdict.link_lost)
+            if verdict.hold:
+                self._in_background(self.link.hold())  # retries while the link is down
+            if verdict.breach:
+                self._breach = verdict.breach
 
-    async def _best_effort(self, command: Awaitable[None]) -> None:
-        with contextlib.suppress(LinkError):
-            await command
-
-    def _outage_recent(self, within_s: float = 2.0) -> bool:
-        """True while telemetry is stale and for ``within_s`` wall seconds after it came back: a mode
-        change seen then is the autopilot's reaction to the outage, not a pilot's decision."""
-        return self.stale or time.monotonic() - self.stale_until_wall < within_s
+    def _volume_breach(self) -> str | None:
+        volume = getattr(self.mission.safety, "volume", None)
+        if volume is None or not self.link.state.has_navigation:
+            return None
+        return volume.breach(self.link.state.pos_ned_m)  # type: ignore[no-any-return]
 
     async def _control_loop(self) -> None:
-        clock, state = self.link.clock, self.link.state
-        period = 1.0 / self.rate_hz
+        clock, state, grid = self.link.clock, self.link.state, self.grid
         while not clock.ready and not self.finished.is_set():
             await asyncio.sleep(0.01)
-        t_next = clock.now(time.monotonic())
+        grid.start(clock.now(time.monotonic()), state.t)
         while not self.finished.is_set():
-            t_next += period
-            wake, now = clock.wall_at(t_next), time.monotonic()
-            if wake - now > RESYNC_TICKS * period / clock.rate:
-                # the clock line moved back under us (re-anchored on a vehicle that paused)
-                t_next = clock.now(now) + period
+            t_next = grid.advance(state.t)
+            now = time.monotonic()
+            wake = grid.fallback_wall(clock.wall_at(t_next), clock.rate)
+            if grid.rebase_if_line_moved_back(wake, now, clock.rate, clock.now(now), state.t):
+                t_next = grid.t_next
                 wake = clock.wall_at(t_next)
             # block at most a quarter of a tick: sped up, a tick is only a few ms of wall time
-            await _sleep_until(wake, min(PRECISE_SLEEP_S, 0.25 * period / clock.rate))
-            now_v = clock.now(time.monotonic())
-            if now_v - t_next > RESYNC_TICKS * period:  # fell behind (a stalled vehicle or machine)
-                self.late_ticks += 1
-                t_next = now_v
+            await self._until_tick(grid.due_stamp(), wake, min(PRECISE_SLEEP_S, 0.25 * grid.period_s / clock.rate))
+            tick_wall = time.monotonic()
+            grid.ticked(tick_wall, clock.now(tick_wall), state.t)
+            t_next = grid.t_next
             tick, sent = None, False
             if self.engaged and self.control is not None and state.has_navigation and not self.stale:
                 self.health.observe_age(t_next - min(state.t_pos, state.t_att))
@@ -295,10 +259,26 @@ class Flight:
                               thrust.thrust_max_n if thrust else math.nan,
                               thrust.estimated_thrust_max_n if thrust else math.nan)
             health = self.health.sample(t_next, self.link.stats["received"], self.sent, self.link.rx_queue_depth,
-                                        self.late_ticks, self.link.rx_lag_max_s)
+                                        grid.late_ticks, self.link.rx_lag_max_s)
             if health is not None:
                 self.link.take_rx_lag_max()
                 self.recorder.health(health)
+
+    async def _until_tick(self, due_stamp: float, wake: float, precise_s: float) -> None:
+        """Until the vehicle's newest stamp reaches ``due_stamp`` or the wall clock reaches ``wake``."""
+        state, arrived = self.link.state, self.link.telemetry_event
+        await asyncio.sleep(0)  # the reader runs first, whatever happens: a tick never starves it
+        while state.t < due_stamp:
+            remaining = wake - time.monotonic()
+            if remaining <= precise_s:
+                if remaining > 0:
+                    time.sleep(remaining)
+                return
+            arrived.clear()
+            if state.t >= due_stamp:
+                return
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(arrived.wait(), remaining - precise_s)
 
     async def _streamer(self) -> None:
         while not self.finished.is_set():
@@ -319,32 +299,45 @@ class Flight:
                     del self.tick_periods[:50_000]
             self._last_sent_wall = now
 
-    # --- mission -------------------------------------------------------------------------
+    # --- waiting (used by the steps) -------------------------------------------------------
 
-    async def _until(self, cond, timeout_v: float, what: str) -> None:  # type: ignore[no-untyped-def]
-        """Wait until ``cond()`` (checked every 10 ms wall), at most ``timeout_v`` vehicle seconds.
-        Raises on interrupt, on leaving offboard while expected, and on timeout."""
-        clock = self.link.clock
+    async def until(self, cond: Callable[[], bool], timeout_v: float, what: str, taking_off: bool = False) -> None:
+        """Wait until ``cond()`` (checked every 10 ms wall), at most ``timeout_v`` vehicle seconds as
+        the believed telemetry stamps show them (and a wall-clock bound no stamp can hold up). Ends
+        early with an abort when the judge says so (supervisor.judge_wait), or when the vehicle has
+        left its safety volume."""
+        clock, st = self.link.clock, self.link.state
         wall_start = time.monotonic()
-        start = clock.now(wall_start)
+        start = st.t  # vehicle time seen to pass: believed stamps only (link/stamps.py), never the line
         wall_limit = wall_timeout_s(timeout_v, clock.rate)
+        armed_seen, mode_at_start = st.armed, st.mode
         while True:
-            if self.interrupted.is_set():
-                raise _Interrupted()
-            if self.expect_offboard and not self.link.state.offboard:
-                during = f" after a {self.stale_for_s:.1f} s telemetry outage" if self._outage_recent() else ""
-                raise MissionAbort(f"the autopilot left offboard (mode {self.link.state.mode}){during}")
+            now = time.monotonic()
+            armed_seen = armed_seen or st.armed
+            why = supervisor.judge_wait(supervisor.StepWatch(
+                interrupted=self.interrupted.is_set(), expect_offboard=self.expect_offboard, offboard=st.offboard,
+                mode=st.mode, armed=st.armed, taking_off=taking_off, armed_seen=armed_seen,
+                mode_at_start=mode_at_start, outage=supervisor.outage_recent(self.watch, now),
+                stale_for_s=self.watch.stale_for_s))
+            if why == "interrupted":
+                raise Interrupted()
+            if why is not None:
+                raise MissionAbort(why)
+            if self._breach is not None:
+                raise MissionAbort(self._breach)
             if cond():
                 return
-            now = time.monotonic()
-            if clock.now(now) - start > timeout_v or now - wall_start > wall_limit:
+            if st.t - start > timeout_v or now - wall_start > wall_limit:
                 raise MissionAbort(f"timeout: {what} not within {timeout_v:g} s")
             await asyncio.sleep(0.01)
 
-    async def _sleep_v(self, seconds: float) -> None:
-        clock = self.link.clock
-        end = clock.now(time.monotonic()) + seconds
-        await self._until(lambda: clock.now(time.monotonic()) >= end, seconds + 5.0, "wait")
+    async def sleep_v(self, seconds: float) -> None:
+        """``seconds`` of vehicle time as the telemetry's stamps show it passing."""
+        st = self.link.state
+        end = st.t + seconds
+        await self.until(lambda: st.t >= end, seconds + 5.0, "wait")
+
+    # --- mission -------------------------------------------------------------------------
 
     async def _mission(self) -> tuple[str, str]:
         link, m = self.link, self.mission
@@ -356,34 +349,36 @@ class Flight:
             for i, step in enumerate(m.steps):
                 self.recorder.begin(i, step.name, step.action, link.state.t)
                 self.log(f"step {step.name}")
-                await self._step(step)
+                await run_step(self, step)
             self.recorder.end(link.state.t)
-            return "completed", f"mission {m.name} completed"
-        except _Interrupted:
+            result = ("completed", f"mission {m.name} completed")
+        except Interrupted:
             self.recorder.end(link.state.t, False, "interrupted")
             self.log("interrupted: holding, then landing")
             await self._recover()
-            return "interrupted", "interrupted by the operator; landed and disarmed" if not link.state.armed else \
-                "interrupted by the operator"
+            result = ("interrupted", "interrupted by the operator; landed and disarmed" if not link.state.armed else
+                      "interrupted by the operator")
         except (MissionAbort, LinkError) as exc:
             self.recorder.end(link.state.t, False, str(exc))
             self.log(f"aborted: {exc}")
             self.failure = str(exc)
             if link.state.sysid and time.monotonic() - link.state.wall_last < m.safety.link_lost_s:
-                # a pilot who took over keeps control; after an outage the companion lands the vehicle
-                # itself (the autopilot's failsafe would too, later)
-                pilot = not link.state.offboard and self.expect_offboard and not self._outage_recent()
+                pilot = supervisor.leave_to_autopilot(self.expect_offboard, link.state.offboard,
+                                                      supervisor.outage_recent(self.watch, time.monotonic()))
                 await self._recover(leave_to_autopilot=pilot)
-            return "aborted", str(exc)
+            result = ("aborted", str(exc))
         finally:
             self.engaged = False
-            self.finished.set()
+        await self._restore_params()
+        self.finished.set()
+        return result
 
     async def _recover(self, leave_to_autopilot: bool = False) -> None:
         """Stop streaming; hold; land; wait until disarmed. If the autopilot left offboard by itself
         (a failsafe, or a pilot), it is in charge: stop without fighting it."""
         self.engaged = False
         self.expect_offboard = False
+        self._breach = None
         for task in list(self._background):  # e.g. a hold still being retried after an outage
             task.cancel()
         link = self.link
@@ -398,30 +393,16 @@ class Flight:
             await asyncio.sleep(0.5 / max(link.clock.rate, 1e-3))
             await link.land()
         self.interrupted.clear()
-        with contextlib.suppress(MissionAbort, _Interrupted):
-            await self._until(lambda: not link.state.armed, 120.0, "disarm after landing")
+        with contextlib.suppress(MissionAbort, Interrupted):
+            await self.until(lambda: not link.state.armed, 120.0, "disarm after landing")
 
     async def _make_controller(self) -> None:
         m, link = self.mission, self.link
-        t_max = self.opt.thrust_max_n or m.thrust.thrust_max_n
-        source = "configuration"
-        # optional look-ups: a parameter an autopilot does not have simply gets no answer
-        if not t_max:
-            sim = await link.get_param("SIM_THRUST_MAX", 0.3, 2)
-            if sim:
-                t_max, source = sim, "vehicle SIM_THRUST_MAX"
-        if not t_max:
-            names = ("MOT_THST_HOVER", "MPC_THR_HOVER") if link.state.autopilot == "ardupilot" else (
-                "MPC_THR_HOVER", "MOT_THST_HOVER")
-            for name in names:
-                hover = await link.get_param(name, 0.3, 2)
-                if hover:
-                    t_max, source = m.vehicle.weight_n / hover, f"vehicle {name} = {hover:.3f}"
-                    break
-        if not t_max and m.thrust.hover_throttle:
-            t_max, source = m.vehicle.weight_n / m.thrust.hover_throttle, "mission hover_throttle"
-        if not t_max:
+        found = await thrust_scale(link, m.vehicle.weight_n, self.opt.thrust_max_n or m.thrust.thrust_max_n,
+                                   m.thrust.hover_throttle)
+        if found is None:
             raise MissionAbort("no thrust scale: set [thrust] thrust_max_n or hover_throttle in the mission")
+        t_max, source = found
         self.log(f"thrust scale {t_max:.2f} N at full throttle ({source})")
         if link.state.autopilot == "ardupilot":
             await self._ardupilot_lean_angle()
@@ -442,11 +423,11 @@ class Flight:
             self.guard, estimate_thrust=m.thrust.estimate, period_s=1.0 / self.rate_hz,
         )
 
-    async def _arm(self, timeout_s: float) -> None:
+    async def arm(self, timeout_s: float) -> None:
         """Arm once the autopilot says its pre-arm checks pass (an estimator still converging is
         normal just after boot), retrying a refusal a few times before giving up."""
         st = self.link.state
-        await self._until(lambda: st.armable is not False, timeout_s, "pre-arm checks to pass")
+        await self.until(lambda: st.armable is not False, timeout_s, "pre-arm checks to pass")
         for attempt in range(4):
             try:
                 await self.link.arm()
@@ -455,7 +436,7 @@ class Flight:
                 if attempt == 3:
                     raise
                 self.log(f"{exc}; retrying")
-                await self._sleep_v(1.0)
+                await self.sleep_v(1.0)
 
     async def _ardupilot_lean_angle(self) -> None:
         """ArduCopter clips attitude targets to ANGLE_MAX (30 deg by default): raise it to the
@@ -468,54 +449,6 @@ class Flight:
                 raise MissionAbort(f"ANGLE_MAX is {got / 100:g} deg and could not be raised to {want / 100:g}")
             self.log(f"ANGLE_MAX raised from {have / 100:g} to {want / 100:g} deg (mission tilt bound)")
 
-    async def _step(self, s: Step) -> None:
-        link, st = self.link, self.link.state
-        c = self.control
-        assert c is not None
-        if s.action == "takeoff":
-            if not st.armed:
-                await self._arm(s.timeout_s)
-            ground = st.pos_ned_m[2]
-            await link.takeoff(s.altitude_m)
-            target = ground - s.altitude_m
-            await self._until(lambda: abs(st.pos_ned_m[2] - target) < 0.15 and st.mode not in ("TAKEOFF",),
-                              s.timeout_s, f"take-off to {s.altitude_m:g} m")
-        elif s.action == "offboard":
-            c.start(st)
-            self.engaged = True
-            await self._sleep_v(1.2)  # setpoints flow for > 1 s at > 2 Hz before the switch (PX4)
-            await link.start_offboard()
-            await self._until(lambda: st.offboard, s.timeout_s, "offboard mode")
-            self.expect_offboard = True
-        elif s.action == "hold":
-            if s.position_ned_m is not None:
-                c.set_target(s.position_ned_m, math.radians(s.yaw_deg) if s.yaw_deg is not None else None)
-            elif s.yaw_deg is not None:
-                c.set_target(c.target, math.radians(s.yaw_deg))
-            await self._sleep_v(s.duration_s)
-        elif s.action == "goto":
-            for wp in s.waypoints:
-                c.set_target(wp, speed_m_s=s.speed_m_s)
-                await self._until(lambda wp=wp: c.reference_at_target and math.dist(st.pos_ned_m, wp) < s.tolerance_m,
-                                  s.timeout_s, f"waypoint {wp}")
-                if s.hold_s > 0:
-                    await self._sleep_v(s.hold_s)
-        elif s.action == "set_param":
-            if s.sim_only and await link.get_param(s.param) is None:
-                self.log(f"{s.param}: no such parameter on this vehicle (sim_only step skipped)")
-                return
-            echoed = await link.set_param(s.param, s.value)
-            if abs(echoed - s.value) > 1e-6 * max(1.0, abs(s.value)):
-                raise MissionAbort(f"{s.param} = {s.value:g} refused (vehicle keeps {echoed:g})")
-        elif s.action == "wait":
-            await self._sleep_v(s.duration_s)
-        elif s.action == "land":
-            self.expect_offboard = False
-            if st.armed:
-                await link.land()
-                self.engaged = False
-                await self._until(lambda: not st.armed, s.timeout_s, "landing and disarm")
-
     # --- summary -------------------------------------------------------------------------
 
     def _summary(self, result: str, message: str) -> dict:
@@ -527,12 +460,13 @@ class Flight:
             jitter = {"median_period_ms": 1000 * med,
                       "p99_abs_jitter_ms": 1000 * sorted(abs(p - med) for p in periods)[int(0.99 * len(periods))]}
         ct = self.control.time if self.control else None
+        w = self.watch
         return {
             "mission": self.mission.name, "result": result, "message": message,
             "controller": self.controller_name, "rate_hz": self.rate_hz, "backend": self.opt.backend,
             "autopilot": self.link.state.autopilot, "setpoints_sent": self.sent,
-            "setpoints_rejected": self.rejected, "late_ticks": self.late_ticks,
-            "telemetry_outages": self.outages, "longest_outage_s": self.longest_outage_s,
+            "setpoints_rejected": self.rejected, "late_ticks": self.grid.late_ticks,
+            "telemetry_outages": w.outages, "longest_outage_s": w.longest_outage_s,
             "thrust_max_n": thrust.thrust_max_n if thrust else None,
             "thrust_max_est_n": thrust.estimated_thrust_max_n if thrust else None,
             "vehicle_clock_rate": self.link.clock.rate, "setpoint_timing": jitter,
@@ -542,7 +476,8 @@ class Flight:
             "cpu_s": time.process_time() - self._cpu0, "wall_s": time.monotonic() - self._wall0,
             "link_stats": dict(getattr(self.link, "stats", {})),
             "older_samples": self.link.state.older_samples,
+            "skipped_steps": list(self.skipped),
+            "params_not_restored": dict(self.params.not_restored),
             "signing": fingerprint(self.opt.signing_key) if self.opt.signing_key else "off",
             "signing_rejections": dict(getattr(self.link, "signing_rejections", {})),
         }
-

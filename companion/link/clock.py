@@ -12,7 +12,7 @@ Cost stays constant per packet however fast telemetry arrives: one sample is kep
 wall time (the least delayed of that bin), the anchor is updated as packets come, and the rate
 is refitted at most ten times a second. After 50 ms without a sample the line is re-anchored on
 the next one: a paused (simulated) vehicle resumes behind the old line, a link outage on it.
-Stamps reach it only through :class:`~companion.stamps.StampGate` (no jumps, no other time
+Stamps reach it only through :class:`~companion.link.stamps.StampGate` (no jumps, no other time
 base). A sample that repeats the newest stamp after such a silence says the vehicle's clock stood still
 (a simulated vehicle waiting for this process, see ``sitl --wait-for-setpoints``): the line is
 re-anchored on it, so the waiting is not mistaken for telemetry growing old.
@@ -46,7 +46,7 @@ class VehicleClock:
 
     def reset(self) -> None:
         """Forget the line: the vehicle's time base changed (it restarted). Only the stamp gate
-        (:mod:`companion.stamps`) decides that; a stamp that merely goes back is never believed."""
+        (:mod:`companion.link.stamps`) decides that; a stamp that merely goes back is never believed."""
         self._samples.clear()
         self._newest = self._anchor = None
         self._rate = 1.0

@@ -81,7 +81,7 @@ class VehicleState:
         return False
 
     def restart_time(self) -> None:
-        """The vehicle's time base changed (see :mod:`companion.stamps`): forget the stamps held."""
+        """The vehicle's time base changed (see :mod:`companion.link.stamps`): forget the stamps held."""
         self.t_pos = self.t_att = self.t_imu = -math.inf
 
     def set_attitude(self, q: Quat, omega_rad_s: Vec3 | None, t: float, wall: float) -> bool:

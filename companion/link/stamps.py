@@ -1,8 +1,8 @@
 """Which telemetry timestamps are believed: the gate in front of the vehicle clock.
 
 Every timestamped sample (ATTITUDE_QUATERNION, LOCAL_POSITION_NED, HIGHRES_IMU, ...) passes
-here before it updates :class:`~companion.state.VehicleState` or the
-:class:`~companion.clock.VehicleClock`. One bad stamp used to be enough to wreck a flight: ten
+here before it updates :class:`~companion.link.state.VehicleState` or the
+:class:`~companion.link.clock.VehicleClock`. One bad stamp used to be enough to wreck a flight: ten
 HIGHRES_IMU frames stamped in UNIX time (MAVLink allows either UNIX or boot time in
 ``time_usec``) moved the clock 1.7e9 s ahead; the controller's time stuck there, the same tilted
 setpoint was re-sent forever and no mission timeout fired.

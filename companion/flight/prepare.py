@@ -1,0 +1,77 @@
+"""Before the mission flies: the thrust scale, and the autopilot parameters the flight needs.
+
+Every parameter the companion changes is changed through :class:`ParamChanges`, which remembers
+the value it found and puts it back when the flight ends — completed, interrupted, aborted or
+after a lost link (best effort then; what could not be put back is listed in the summary).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from companion.link import LinkError, VehicleLink
+
+__all__ = ["ParamChanges", "thrust_scale"]
+
+
+@dataclass
+class ParamChanges:
+    link: VehicleLink
+    log: Callable[[str], None]
+    originals: dict[str, float] = field(default_factory=dict)
+    """name -> the value the autopilot had before our first change"""
+    not_restored: dict[str, float] = field(default_factory=dict)
+
+    async def set(self, name: str, value: float, why: str) -> bool:
+        """Set ``name`` to ``value`` (remembering the original); False if the autopilot has no such
+        parameter. LinkError if it refuses the value."""
+        have = await self.link.get_param(name)
+        if have is None:
+            return False
+        if math.isclose(have, value, rel_tol=1e-6, abs_tol=1e-9):
+            return True
+        echoed = await self.link.set_param(name, value)
+        self.originals.setdefault(name, have)
+        if not math.isclose(echoed, value, rel_tol=1e-6, abs_tol=1e-9):
+            raise LinkError(f"{name} = {value:g} refused (the autopilot keeps {echoed:g})")
+        self.log(f"{name} {have:g} -> {value:g} ({why}; put back when the flight ends)")
+        return True
+
+    async def restore(self) -> dict[str, float]:
+        """Put back every changed parameter; returns those that could not be (name -> original)."""
+        for name, original in reversed(list(self.originals.items())):
+            try:
+                echoed = await self.link.set_param(name, original)
+                if math.isclose(echoed, original, rel_tol=1e-6, abs_tol=1e-9):
+                    self.log(f"{name} put back to {original:g}")
+                    continue
+            except LinkError:
+                pass
+            self.not_restored[name] = original
+            self.log(f"{name} could NOT be put back to {original:g}: set it by hand")
+        self.originals.clear()
+        return dict(self.not_restored)
+
+
+async def thrust_scale(link: VehicleLink, weight_n: float, configured_n: float, hover_throttle: float
+                       ) -> tuple[float, str] | None:
+    """Newtons at full normalised thrust, and where the figure came from: the configuration, the
+    simulated vehicle's SIM_THRUST_MAX, the autopilot's hover throttle (weight / hover), or the
+    mission's ``hover_throttle``. Look-ups of parameters the autopilot does not have end at once on
+    an autopilot that answers PARAM_ERROR, else after their retries."""
+    if configured_n:
+        return configured_n, "configuration"
+    sim = await link.get_param("SIM_THRUST_MAX", 0.3, 3)
+    if sim:
+        return sim, "vehicle SIM_THRUST_MAX"
+    names = ("MOT_THST_HOVER", "MPC_THR_HOVER") if link.state.autopilot == "ardupilot" else (
+        "MPC_THR_HOVER", "MOT_THST_HOVER")
+    for name in names:
+        hover = await link.get_param(name, 0.5, 3)
+        if hover and 0.05 < hover < 0.95:
+            return weight_n / hover, f"vehicle {name} = {hover:.3f}"
+    if hover_throttle:
+        return weight_n / hover_throttle, "mission hover_throttle"
+    return None

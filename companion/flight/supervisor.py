@@ -1,0 +1,190 @@
+"""The flight's judge: pure functions of what was seen and the clock, returning decisions.
+
+No sockets, no tasks, no clock reads: the runner (:mod:`companion.flight.runner`) samples the
+link into a :class:`Watch` every 20 ms, asks :func:`judge`, and carries out the :class:`Verdict`
+(pause the setpoints, command hold, end the flight). While a mission step waits,
+:func:`judge_wait` says whether it may go on. Everything here is tested without a vehicle
+(tests/companion/test_supervisor.py).
+
+The rules, and why:
+
+- **link lost**: nothing at all heard for ``link_lost_s`` (wall, counted only while this process
+  was awake to hear it: :mod:`companion.flight.silence`) -> the flight ends (exit 3); the vehicle's
+  own failsafe protects it.
+- **stale**: position or attitude older than ``telemetry_timeout_s`` of vehicle time *and* silent
+  on the wire for at least that long in wall time at the vehicle's rate (never less than
+  ``min_silence_s``): sped up, a short pause of a simulated vehicle must not read as seconds of
+  outage -> setpoints pause; they resume when telemetry is fresh again.
+- **behind**: datagrams keep arriving but wait in our own queue (this process starved of CPU) ->
+  treated as stale; measured on our side of the socket, so a pausing vehicle cannot fake it.
+- **hold**: stale for ``stale_hold_s`` of vehicle time and really silent (at least
+  ``min_hold_silence_s`` of wall time) -> command hold once, in the background.
+- **safety volume**: the vehicle outside the mission's volume while we fly it -> the mission
+  stops: hold, then land.
+- a step's wait ends with an abort when the operator interrupts, when the autopilot leaves the
+  mode that flies our setpoints (a pilot or a failsafe took over), or, while taking off, when it
+  disarms or starts landing by itself (a failsafe): waiting out the timeout then would be waiting
+  for something that cannot happen.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+__all__ = ["Limits", "Watch", "Watchdog", "Verdict", "judge", "outage_recent", "StepWatch", "judge_wait",
+           "FAILSAFE_MODES", "leave_to_autopilot"]
+
+
+@dataclass(frozen=True)
+class Limits:
+    telemetry_timeout_s: float
+    """vehicle seconds"""
+    stale_hold_s: float
+    """vehicle seconds"""
+    link_lost_s: float
+    """wall seconds"""
+    min_silence_s: float = 0.15
+    """wall seconds of silence below which telemetry is never called stale (sped-up simulations)"""
+    min_hold_silence_s: float = 0.5
+    """wall seconds of silence below which hold is never commanded: sped up, a host stall freezes
+    a simulated vehicle for a few hundred ms, which reads as seconds of vehicle time"""
+
+
+@dataclass(frozen=True)
+class Watch:
+    """What the watchdog saw at one check."""
+
+    wall_s: float
+    connected: bool
+    """an autopilot has been heard (the link-lost rule applies from then on)"""
+    silent_link_s: float
+    """wall seconds with nothing at all heard (awake-counted)"""
+    silent_nav_s: float
+    """wall seconds with no position or attitude heard (awake-counted)"""
+    telemetry_age_s: float
+    """vehicle seconds since the older of position and attitude"""
+    behind_s: float
+    """vehicle seconds the newest parsed datagram waited in our own queue"""
+    rate: float
+    """vehicle seconds per wall second"""
+    engaged: bool
+    """the controller is streaming setpoints"""
+    breach: str | None = None
+    """outside the safety volume: why (None: inside, or not flying it)"""
+
+
+@dataclass(frozen=True)
+class Watchdog:
+    """The judge's memory between checks."""
+
+    stale: bool = False
+    hold_requested: bool = False
+    outages: int = 0
+    stale_for_s: float = 0.0
+    longest_outage_s: float = 0.0
+    stale_until_wall_s: float = -math.inf
+    breached: bool = False
+
+
+@dataclass(frozen=True)
+class Verdict:
+    state: Watchdog
+    link_lost: str | None = None
+    """end the flight: the link is gone"""
+    hold: str | None = None
+    """command hold now (best effort, in the background), for this reason"""
+    breach: str | None = None
+    """end the mission: hold, then land, for this reason"""
+    log: tuple[str, ...] = ()
+
+
+def judge(s: Watchdog, w: Watch, lim: Limits) -> Verdict:
+    if w.connected and w.silent_link_s > lim.link_lost_s:
+        return Verdict(s, link_lost=f"vehicle link lost: no telemetry for {w.silent_link_s:.1f} s "
+                                    f"(bound {lim.link_lost_s:g} s)")
+    if not w.engaged:
+        return Verdict(dataclasses.replace(s, stale=False))
+    rate = max(w.rate, 1e-3)
+    age = w.telemetry_age_s
+    stale = age > lim.telemetry_timeout_s and w.silent_nav_s > max(lim.telemetry_timeout_s / rate, lim.min_silence_s)
+    behind = w.behind_s > lim.telemetry_timeout_s
+    if behind:
+        stale, age = True, max(age, w.behind_s)
+    log: list[str] = []
+    new = s
+    if stale and not s.stale:
+        new = dataclasses.replace(new, outages=s.outages + 1)
+        log.append(f"telemetry {'queued here' if behind else 'stale'} ({age:.2f} s): setpoints paused")
+    elif s.stale and not stale:
+        new = dataclasses.replace(new, stale_until_wall_s=w.wall_s)
+        log.append(f"telemetry back after {s.stale_for_s:.2f} s")
+    hold = None
+    if stale:
+        new = dataclasses.replace(new, stale_for_s=age, longest_outage_s=max(s.longest_outage_s, age))
+        # hold only for real silence: not for a backlog in our own queue (it clears in one pass of
+        # the reader) nor for a stall of this host (the silence is awake-counted)
+        if (age > lim.stale_hold_s and not s.hold_requested
+                and w.silent_nav_s > max(lim.stale_hold_s / rate, lim.min_hold_silence_s)):
+            new = dataclasses.replace(new, hold_requested=True)
+            hold = f"telemetry stale for {age:.2f} s: commanding hold"
+            log.append(hold)
+    breach = None
+    if w.breach is not None and not s.breached and not stale:
+        new = dataclasses.replace(new, breached=True)
+        breach = f"outside the safety volume: {w.breach}"
+        log.append(f"{breach}: holding, then landing")
+    return Verdict(dataclasses.replace(new, stale=stale), hold=hold, breach=breach, log=tuple(log))
+
+
+def outage_recent(s: Watchdog, wall_s: float, within_s: float = 2.0) -> bool:
+    """While telemetry is stale and for ``within_s`` wall seconds after it came back: a mode change
+    seen then is the autopilot's reaction to the outage, not a pilot's decision."""
+    return s.stale or wall_s - s.stale_until_wall_s < within_s
+
+
+FAILSAFE_MODES = frozenset({"LAND", "RTL", "PRECLAND", "SMART_RTL", "BRAKE"})
+"""modes an autopilot enters by itself when something failed; a take-off cannot complete in them"""
+
+
+@dataclass(frozen=True)
+class StepWatch:
+    """What a mission step's wait sees at one check."""
+
+    interrupted: bool
+    expect_offboard: bool
+    """the mission has switched the autopilot to fly our setpoints"""
+    offboard: bool
+    mode: str
+    armed: bool
+    taking_off: bool
+    """the step waits for the autopilot's own take-off"""
+    armed_seen: bool = False
+    """the vehicle was seen armed since the wait began (heartbeats lag commands)"""
+    mode_at_start: str = ""
+    """the mode when the wait began: only a change *to* a failsafe mode counts"""
+    outage: bool = False
+    """telemetry was stale recently (outage_recent)"""
+    stale_for_s: float = 0.0
+
+
+def judge_wait(w: StepWatch) -> str | None:
+    """Why a waiting step must end now (an abort), or None to go on waiting. ``"interrupted"`` is
+    the operator's request."""
+    if w.interrupted:
+        return "interrupted"
+    if w.expect_offboard and not w.offboard:
+        during = f" after a {w.stale_for_s:.1f} s telemetry outage" if w.outage else ""
+        return f"the autopilot left offboard (mode {w.mode}){during}"
+    if w.taking_off and w.armed_seen and not w.armed:
+        return "the vehicle disarmed during the take-off"
+    if w.taking_off and w.mode in FAILSAFE_MODES and w.mode != w.mode_at_start:
+        return f"the autopilot switched to {w.mode} during the take-off (a failsafe?)"
+    return None
+
+
+def leave_to_autopilot(expect_offboard: bool, offboard: bool, outage: bool) -> bool:
+    """After an abort: a pilot (or ground station) who took the vehicle out of offboard keeps it;
+    after a telemetry outage the companion lands it itself (the autopilot's failsafe would too)."""
+    return expect_offboard and not offboard and not outage
