@@ -50,7 +50,7 @@ def _fly(args: argparse.Namespace) -> int:
         return 2
     opts = FlightOptions(connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
                          out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet, signing_key=key,
-                         connect_timeout_s=args.connect_timeout)
+                         connect_timeout_s=args.connect_timeout, output=args.output)
     return asyncio.run(run_flight(Flight(mission, opts), plots=not args.no_plots))
 
 
@@ -107,13 +107,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     fly.add_argument("mission", help="mission file (.toml, or a QGroundControl .plan)")
     fly.add_argument("--connect", default="udp://127.0.0.1:14540",
                      help="udp://HOST:PORT (vehicle listens) or udpin://HOST:PORT (vehicle sends first)")
-    fly.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc"), help="position controller")
+    fly.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc", "autopilot"),
+                     help="position controller; autopilot: the autopilot's own position control flies the same "
+                          "reference (SET_POSITION_TARGET_LOCAL_NED), for comparison")
     fly.add_argument("--rate", type=float, help="control rate in vehicle Hz (10..250)")
     fly.add_argument("--backend", choices=("pymavlink", "mavsdk"), default="pymavlink")
     fly.add_argument("--thrust-max", type=float, help="thrust at full throttle [N] (default: ask the vehicle)")
     fly.add_argument("--out", default="flights", help="folder for flight records")
     fly.add_argument("--connect-timeout", type=float, default=20.0, metavar="S",
                      help="give up if no autopilot heartbeat and telemetry within S seconds (default 20)")
+    fly.add_argument("--output", choices=("auto", "attitude", "rates", "attitude_rates"), default="auto",
+                     help="what SET_ATTITUDE_TARGET carries: attitude (q, thrust, yaw-rate feed-forward; the "
+                          "default), rates (body rates and thrust: the attitude loop closed here), attitude_rates "
+                          "(everything, as the paper's inner loop takes it)")
     fly.add_argument("--no-plots", action="store_true")
     fly.add_argument("--quiet", action="store_true")
     add_signing_options(fly)

@@ -24,7 +24,7 @@ from .guard import SetpointGuard
 from companion.link.state import VehicleState
 from .thrust_scale import ThrustScaleEstimator
 
-__all__ = ["Setpoint", "Tick", "OffboardController", "propagate", "MAX_PROPAGATION_S"]
+__all__ = ["Setpoint", "PositionTarget", "Tick", "OffboardController", "propagate", "MAX_PROPAGATION_S", "AUTOPILOT"]
 
 MAX_PROPAGATION_S = 0.1
 """the longest a position sample is propagated forward (beyond, it is stale anyway)"""
@@ -54,6 +54,22 @@ class Setpoint(NamedTuple):
     thrust: float
 
 
+class PositionTarget(NamedTuple):
+    """The reference itself, for the autopilot's own position controller (controller "autopilot")."""
+
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
+    accel_ned_m_s2: Vec3
+    yaw_rad: float
+
+
+AUTOPILOT = "autopilot"
+"""the controller name that flies the reference with the autopilot's own position control: the
+same mission, reference and record, the comparison every companion figure is bounded against"""
+
+_NAN3 = (math.nan, math.nan, math.nan)
+
+
 class Tick(NamedTuple):
     """Everything one control tick computed, for the flight record."""
 
@@ -62,7 +78,7 @@ class Tick(NamedTuple):
     attitude: AttitudeSetpoint
     force_n: Vec3
     estimate_n: Vec3
-    setpoint: Setpoint
+    setpoint: Setpoint | PositionTarget
     rejected: str | None
 
 
@@ -79,7 +95,9 @@ class OffboardController:
     period_s: float = 0.01
 
     def __post_init__(self) -> None:
-        self.loop = PositionLoop.create(self.controller, self.vehicle, self.gains, self.reference)
+        self.passthrough = self.controller == AUTOPILOT
+        self.loop = PositionLoop.create("pid" if self.passthrough else self.controller, self.vehicle, self.gains,
+                                        self.reference)
         self.time = ControllerTime(self.period_s, default_lead_s(self.period_s))
         self.last: Tick | None = None
         self.filter: ReferenceFilter | None = None
@@ -126,6 +144,10 @@ class OffboardController:
     def step(self, state: VehicleState, t: float, dt_s: float) -> Tick:
         assert self.filter is not None, "start() first"
         ref = self.filter.update(self.target, self.target_yaw, dt_s)
+        if self.passthrough:
+            target = PositionTarget(ref.pos_ned_m, ref.vel_ned_m_s, ref.accel_ned_m_s2, float(ref.yaw_rad))
+            hover = AttitudeSetpoint(quat.from_yaw(float(ref.yaw_rad)), (0.0, 0.0, 0.0), math.nan)
+            return Tick(t, ref, hover, _NAN3, _NAN3, target, None)
         sf = state.specific_force_body_m_s2 if self.gains.observer_uses_imu else None
         sf_ned = quat.rotate(state.q, sf) if sf is not None else None
         pos, vel = propagate(state.pos_ned_m, state.vel_ned_m_s, sf_ned, self.vehicle.gravity_m_s2,

@@ -29,7 +29,7 @@ from typing import IO
 from companion.control import quaternion as quat
 
 from .health import HEALTH_COLUMNS
-from .offboard import Tick
+from .offboard import PositionTarget, Tick
 from companion.link.state import VehicleState
 
 __all__ = ["COLUMNS", "SegmentStats", "FlightRecorder"]
@@ -171,8 +171,12 @@ class FlightRecorder:
             r = tick.reference
             ref = (*r.pos_ned_m, *r.vel_ned_m_s, r.yaw_rad)
             a = tick.attitude
-            sp = (*tick.setpoint.q, *tick.setpoint.body_rates_rad_s)
-            thrust = (float(a.thrust_n), tick.setpoint.thrust)
+            if isinstance(tick.setpoint, PositionTarget):  # the autopilot's own position control flies
+                sp = (*a.q_d, math.nan, math.nan, math.nan)
+                thrust = (math.nan, math.nan)
+            else:
+                sp = (*tick.setpoint.q, *tick.setpoint.body_rates_rad_s)
+                thrust = (float(a.thrust_n), tick.setpoint.thrust)
             force = (*tick.force_n, *tick.estimate_n)
             t = tick.t
             self._trail.add(t, r.pos_ned_m)
@@ -182,7 +186,8 @@ class FlightRecorder:
                 seg.samples += 1
                 seg.sum_sq_error += err * err
                 seg.peak_error_m = max(seg.peak_error_m, err)
-                seg.force_estimate_n = tuple(float(x) for x in tick.estimate_n)  # type: ignore[assignment]
+                if not math.isnan(tick.estimate_n[0]):
+                    seg.force_estimate_n = tuple(float(x) for x in tick.estimate_n)  # type: ignore[assignment]
                 seg.thrust_max_est_n = thrust_max_est_n
         if seg is not None:
             seg.peak_tilt_deg = max(seg.peak_tilt_deg, tilt)

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from companion.control.params import PositionGains
+from companion.control.vector import clip_norm
 from companion.link import LinkError, VehicleLink, open_link
 from companion.mavlink.signing import fingerprint
 from companion.mission import Mission
@@ -34,7 +35,8 @@ from . import supervisor
 from .errors import EXIT_CODES, Interrupted, LinkLost, MissionAbort
 from .guard import SetpointGuard
 from .health import HealthMonitor
-from .offboard import OffboardController, Setpoint
+from .offboard import OffboardController, PositionTarget, Setpoint
+from .output import choose_output
 from .pacing import TickGrid
 from .prepare import ParamChanges, thrust_scale
 from .recorder import FlightRecorder
@@ -64,6 +66,8 @@ class FlightOptions:
     quiet: bool = False
     signing_key: bytes | None = field(default=None, repr=False)
     """MAVLink 2 signing key (pymavlink backend): sign what we send, believe only signed frames"""
+    output: str = "auto"
+    """what SET_ATTITUDE_TARGET carries: auto | attitude | rates | attitude_rates (output.py)"""
 
 
 @dataclass
@@ -116,10 +120,12 @@ class Flight:
         self.finished = asyncio.Event()
         self.interrupted = asyncio.Event()
         self._new_setpoint = asyncio.Event()
-        self._setpoint: Setpoint | None = None
+        self._setpoint: Setpoint | PositionTarget | None = None
         self.sent = 0
         self.rejected = 0
         self.grid = TickGrid(1.0 / self.rate_hz)
+        self.output = choose_output(opt.output, "px4")
+        """what SET_ATTITUDE_TARGET carries (output.py); chosen again once the autopilot is known"""
         self.health = HealthMonitor()
         self.tick_periods: list[float] = []
         """wall-clock spacing of sent setpoints (bounded), for the jitter benchmark"""
@@ -248,7 +254,12 @@ class Flight:
                 # a tick with no new vehicle time to step re-sends the last setpoint
                 tick, moved = self.control.update(state, t_next)
                 if tick is not None and tick.rejected is None:
-                    self._setpoint = tick.setpoint
+                    sp = tick.setpoint
+                    if isinstance(sp, Setpoint):
+                        rates = clip_norm(self.output.rates(state.q, sp.q, sp.body_rates_rad_s),
+                                          self.guard.max_rate_rad_s)
+                        sp = sp._replace(body_rates_rad_s=tuple(float(w) for w in rates))
+                    self._setpoint = sp
                     self._new_setpoint.set()
                     sent = True
                 elif tick is not None and moved:
@@ -290,7 +301,10 @@ class Flight:
             sp = self._setpoint
             if sp is None or not self.engaged or self.stale:
                 continue
-            self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust)
+            if isinstance(sp, PositionTarget):
+                self.link.send_position_target(sp.pos_ned_m, sp.vel_ned_m_s, sp.accel_ned_m_s2, sp.yaw_rad)
+            else:
+                self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust, self.output.type_mask)
             self.sent += 1
             now = time.monotonic()
             if math.isfinite(self._last_sent_wall):
@@ -345,6 +359,8 @@ class Flight:
             self.log(f"connecting to {self.opt.connect} ({self.opt.backend})")
             await link.wait_connected(self.opt.connect_timeout_s)
             self.log(f"connected: {link.state.autopilot} system {link.state.sysid}, mode {link.state.mode}")
+            self.output = choose_output(self.opt.output, link.state.autopilot)
+            self.log(f"setpoints: {self.output.mode} (type_mask {self.output.type_mask})")
             await self._make_controller()
             for i, step in enumerate(m.steps):
                 self.recorder.begin(i, step.name, step.action, link.state.t)
@@ -464,6 +480,7 @@ class Flight:
         return {
             "mission": self.mission.name, "result": result, "message": message,
             "controller": self.controller_name, "rate_hz": self.rate_hz, "backend": self.opt.backend,
+            "output": self.output.mode, "type_mask": self.output.type_mask,
             "autopilot": self.link.state.autopilot, "setpoints_sent": self.sent,
             "setpoints_rejected": self.rejected, "late_ticks": self.grid.late_ticks,
             "telemetry_outages": w.outages, "longest_outage_s": w.longest_outage_s,

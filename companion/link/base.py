@@ -95,8 +95,14 @@ class VehicleLink(abc.ABC):
     async def land(self) -> None: ...
 
     @abc.abstractmethod
-    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float) -> None:
-        """SET_ATTITUDE_TARGET with quaternion, body rates and normalised thrust, now (no await)."""
+    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0) -> None:
+        """SET_ATTITUDE_TARGET with quaternion, body rates, normalised thrust and the ignore bits,
+        now (no await)."""
+
+    @abc.abstractmethod
+    def send_position_target(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, yaw_rad: float) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED with position, velocity, acceleration and yaw, now: the
+        autopilot's own position control flies it."""
 
     @abc.abstractmethod
     async def get_param(self, name: str, timeout_s: float = 1.0, retries: int = 3) -> float | None:

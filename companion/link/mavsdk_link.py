@@ -225,6 +225,9 @@ class MavsdkLink(VehicleLink):
             raise LinkError(f"{what} refused: {exc}{' (' + reason + ')' if reason else ''}") from None
 
     async def arm(self) -> None:
+        """HOLD first: after a disarm PX4 restores the user's last mode (OFFBOARD after our own
+        previous flight) and refuses to arm in it without a stream."""
+        await self._do("the arming mode (HOLD)", self.action.hold())
         await self._do("arming", self.action.arm())
 
     async def disarm(self, force: bool = False) -> None:
@@ -257,22 +260,41 @@ class MavsdkLink(VehicleLink):
 
     # --- setpoints and parameters ----------------------------------------------------------
 
-    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float) -> None:
-        fields = {"time_boot_ms": int(max(self.state.t, 0.0) * 1000) & 0xFFFFFFFF,
-                  "target_system": self.state.sysid, "target_component": 1, "type_mask": 0,
+    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0) -> None:
+        fields = {"time_boot_ms": int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF,
+                  "target_system": self.state.sysid, "target_component": 1, "type_mask": type_mask,
                   "q": [float(c) for c in q], "body_roll_rate": float(body_rates_rad_s[0]),
                   "body_pitch_rate": float(body_rates_rad_s[1]), "body_yaw_rate": float(body_rates_rad_s[2]),
                   "thrust": float(thrust)}
         msg = MavlinkMessage(message_name="SET_ATTITUDE_TARGET", system_id=245, component_id=190,
                              target_system_id=self.state.sysid, target_component_id=1, fields_json=json.dumps(fields))
+        self._queue_direct(msg)
+        if self.traffic is not None:
+            self.traffic(self._log_mav.set_attitude_target_encode(
+                fields["time_boot_ms"], self.state.sysid, 1, type_mask, fields["q"], fields["body_roll_rate"],
+                fields["body_pitch_rate"], fields["body_yaw_rate"], fields["thrust"]).pack(self._log_mav))
+
+    def send_position_target(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, yaw_rad: float) -> None:
+        x, y, z = (float(c) for c in pos_ned_m)
+        vx, vy, vz = (float(c) for c in vel_ned_m_s)
+        ax, ay, az = (float(c) for c in accel_ned_m_s2)
+        fields = {"time_boot_ms": int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF,
+                  "target_system": self.state.sysid, "target_component": 1, "coordinate_frame": 1,
+                  "type_mask": 2048, "x": x, "y": y, "z": z, "vx": vx, "vy": vy, "vz": vz, "afx": ax, "afy": ay,
+                  "afz": az, "yaw": float(yaw_rad), "yaw_rate": 0.0}
+        self._queue_direct(MavlinkMessage(message_name="SET_POSITION_TARGET_LOCAL_NED", system_id=245,
+                                          component_id=190, target_system_id=self.state.sysid, target_component_id=1,
+                                          fields_json=json.dumps(fields)))
+        if self.traffic is not None:
+            self.traffic(self._log_mav.set_position_target_local_ned_encode(
+                fields["time_boot_ms"], self.state.sysid, 1, 1, 2048, x, y, z, vx, vy, vz, ax, ay, az,
+                float(yaw_rad), 0.0).pack(self._log_mav))
+
+    def _queue_direct(self, msg: MavlinkMessage) -> None:
         if self._outbox.full():  # never queue stale setpoints: the newest one wins
             self._outbox.get_nowait()
             self.stats["setpoints_superseded"] += 1
         self._outbox.put_nowait(msg)
-        if self.traffic is not None:
-            self.traffic(self._log_mav.set_attitude_target_encode(
-                fields["time_boot_ms"], self.state.sysid, 1, 0, fields["q"], fields["body_roll_rate"],
-                fields["body_pitch_rate"], fields["body_yaw_rate"], fields["thrust"]).pack(self._log_mav))
 
     async def get_param(self, name: str, timeout_s: float = 1.0, retries: int = 3) -> float | None:
         try:

@@ -37,6 +37,8 @@ from companion.mavlink.wire import new_parser, parse_datagram
 __all__ = ["PymavlinkLink"]
 
 QUEUE_SIZE = 2000
+POSITION_TARGET_MASK = 2048
+"""SET_POSITION_TARGET_LOCAL_NED: position, velocity, acceleration and yaw used; yaw rate ignored"""
 MAX_PARAMS = 4096
 """parameter values kept (PX4 has about 1500)"""
 
@@ -230,9 +232,16 @@ class PymavlinkLink(VehicleLink):
             fut = self._acks.get(msg.command)
             if fut is not None and not fut.done() and msg.result != mavlink.MAV_RESULT_IN_PROGRESS:
                 fut.set_result(msg.result)
+        elif kind == "PARAM_ERROR":
+            # ArduPilot 4.7+ answers a read of a parameter it does not have, instead of silence
+            if msg.target_system in (0, self.mav.srcSystem):
+                name = _param_name(msg.param_id)
+                fut = self._params.get(name)
+                if fut is not None and not fut.done():
+                    fut.set_result(math.nan)
+                    self.stats["param_errors"] += 1
         elif kind == "PARAM_VALUE":
-            name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode("ascii", "replace")
-            name = name.split("\x00", 1)[0]
+            name = _param_name(msg.param_id)
             if name not in st.params and len(st.params) >= MAX_PARAMS:
                 self.stats["params_dropped"] += 1  # a vehicle, or someone posing as one, inventing names
                 return
@@ -316,8 +325,12 @@ class PymavlinkLink(VehicleLink):
         await self._expect(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, *mode, what=what)
 
     async def arm(self) -> None:
-        if self.flavour is ARDUPILOT:
-            await self._set_mode(ARDUPILOT.offboard_mode, "GUIDED mode")
+        """Arm in a mode the autopilot can arm in and will fly the take-off from: GUIDED on
+        ArduPilot; HOLD on PX4, which after a disarm restores the last mode the user chose
+        (OFFBOARD after our own previous flight) and refuses to arm in it without a stream."""
+        assert self.flavour is not None
+        mode = ARDUPILOT.offboard_mode if self.flavour is ARDUPILOT else PX4.hold_mode
+        await self._set_mode(mode, "the arming mode")
         await self._expect(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, what="arming")
 
     async def disarm(self, force: bool = False) -> None:
@@ -346,11 +359,18 @@ class PymavlinkLink(VehicleLink):
 
     # --- setpoints and parameters ----------------------------------------------------------
 
-    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float) -> None:
-        t_ms = int(max(self.state.t, 0.0) * 1000) & 0xFFFFFFFF
+    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0) -> None:
+        t_ms = int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF
         self._send(self.mav.set_attitude_target_encode(
-            t_ms, self.state.sysid or 1, self.state.compid or 1, 0, [float(c) for c in q],
+            t_ms, self.state.sysid or 1, self.state.compid or 1, type_mask, [float(c) for c in q],
             float(body_rates_rad_s[0]), float(body_rates_rad_s[1]), float(body_rates_rad_s[2]), float(thrust)))
+        self.stats["setpoints"] += 1
+
+    def send_position_target(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, yaw_rad: float) -> None:
+        t_ms = int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF
+        self._send(self.mav.set_position_target_local_ned_encode(
+            t_ms, self.state.sysid or 1, self.state.compid or 1, mavlink.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
+            *(float(c) for c in (*pos_ned_m, *vel_ned_m_s, *accel_ned_m_s2)), float(yaw_rad), 0.0))
         self.stats["setpoints"] += 1
 
     async def _param(self, name: str, send: Any, timeout_s: float = 1.0, retries: int = 3) -> float | None:
@@ -361,9 +381,10 @@ class PymavlinkLink(VehicleLink):
             for _ in range(retries):
                 send()
                 try:
-                    return await asyncio.wait_for(asyncio.shield(fut), timeout_s)
+                    value = await asyncio.wait_for(asyncio.shield(fut), timeout_s)
                 except TimeoutError:
                     continue
+                return None if math.isnan(value) else value  # NaN: PARAM_ERROR, no such parameter
         finally:
             self._params.pop(name, None)
         return None
@@ -381,3 +402,9 @@ class PymavlinkLink(VehicleLink):
         if echoed is None:
             raise LinkError(f"parameter {name} was not acknowledged")
         return echoed
+
+
+def _param_name(raw: object) -> str:
+    """A param_id as text: pymavlink gives str or bytes, NUL-padded to 16 characters."""
+    text = raw if isinstance(raw, str) else bytes(raw).decode("ascii", "replace")  # type: ignore[arg-type]
+    return text.split("\x00", 1)[0]
