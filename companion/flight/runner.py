@@ -443,6 +443,7 @@ class Flight:
         """Arm once the autopilot says its pre-arm checks pass (an estimator still converging is
         normal just after boot), retrying a refusal a few times before giving up."""
         st = self.link.state
+        await self.link.set_arming_mode()
         await self.until(lambda: st.armable is not False, timeout_s, "pre-arm checks to pass")
         for attempt in range(4):
             try:

@@ -76,6 +76,12 @@ class VehicleLink(abc.ABC):
         """Until an autopilot's heartbeat and navigation telemetry arrive; LinkError on timeout."""
 
     @abc.abstractmethod
+    async def set_arming_mode(self) -> None:
+        """Switch to the mode the autopilot arms and takes off in: GUIDED on ArduPilot; HOLD on PX4,
+        which after a disarm restores the last mode the user chose (OFFBOARD after our own previous
+        flight), fails its pre-arm checks there and refuses to arm."""
+
+    @abc.abstractmethod
     async def arm(self) -> None: ...
 
     @abc.abstractmethod

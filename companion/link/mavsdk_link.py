@@ -224,10 +224,10 @@ class MavsdkLink(VehicleLink):
             reason = self.state.statustexts[-1][1] if self.state.statustexts else ""
             raise LinkError(f"{what} refused: {exc}{' (' + reason + ')' if reason else ''}") from None
 
-    async def arm(self) -> None:
-        """HOLD first: after a disarm PX4 restores the user's last mode (OFFBOARD after our own
-        previous flight) and refuses to arm in it without a stream."""
+    async def set_arming_mode(self) -> None:
         await self._do("the arming mode (HOLD)", self.action.hold())
+
+    async def arm(self) -> None:
         await self._do("arming", self.action.arm())
 
     async def disarm(self, force: bool = False) -> None:

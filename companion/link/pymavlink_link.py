@@ -30,6 +30,7 @@ from companion.link.state import VehicleState
 from .base import LinkError, TrafficHook, VehicleLink
 from .url import parse_url
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
+from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, decode_value, encode_value, param_name
 from companion.mavlink.signing import SignatureCheck, enable_signing, fingerprint
 from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
@@ -81,6 +82,7 @@ class PymavlinkLink(VehicleLink):
         self._command_lock = asyncio.Lock()
         """one command in flight at a time: an ACK names only the command id, not the request"""
         self._params: dict[str, asyncio.Future[float]] = {}
+        self._param_types: dict[str, int] = {}
         self._connected = asyncio.Event()
         self._closed = False
 
@@ -224,7 +226,8 @@ class PymavlinkLink(VehicleLink):
             st.landed_state = msg.landed_state
         elif kind == "SYS_STATUS":
             prearm = mavlink.MAV_SYS_STATUS_PREARM_CHECK
-            if msg.onboard_control_sensors_present & prearm:
+            # ArduPilot sets the bit in "present" and "health"; PX4 v1.16 only ever in "health"
+            if msg.onboard_control_sensors_present & prearm or self.flavour is PX4:
                 st.armable = bool(msg.onboard_control_sensors_health & prearm)
         elif kind == "STATUSTEXT":
             st.statustexts.append((msg.severity, msg.text))
@@ -235,20 +238,22 @@ class PymavlinkLink(VehicleLink):
         elif kind == "PARAM_ERROR":
             # ArduPilot 4.7+ answers a read of a parameter it does not have, instead of silence
             if msg.target_system in (0, self.mav.srcSystem):
-                name = _param_name(msg.param_id)
+                name = param_name(msg.param_id)
                 fut = self._params.get(name)
                 if fut is not None and not fut.done():
                     fut.set_result(math.nan)
                     self.stats["param_errors"] += 1
         elif kind == "PARAM_VALUE":
-            name = _param_name(msg.param_id)
+            name = param_name(msg.param_id)
             if name not in st.params and len(st.params) >= MAX_PARAMS:
                 self.stats["params_dropped"] += 1  # a vehicle, or someone posing as one, inventing names
                 return
-            st.params[name] = msg.param_value
+            value = decode_value(msg.param_value, msg.param_type, bytewise=self.flavour is PX4)
+            st.params[name] = value
+            self._param_types[name] = msg.param_type
             fut = self._params.get(name)
             if fut is not None and not fut.done():
-                fut.set_result(msg.param_value)
+                fut.set_result(value)
 
     # --- connection ----------------------------------------------------------------------
 
@@ -324,13 +329,12 @@ class PymavlinkLink(VehicleLink):
     async def _set_mode(self, mode: tuple[int, int], what: str) -> None:
         await self._expect(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, *mode, what=what)
 
-    async def arm(self) -> None:
-        """Arm in a mode the autopilot can arm in and will fly the take-off from: GUIDED on
-        ArduPilot; HOLD on PX4, which after a disarm restores the last mode the user chose
-        (OFFBOARD after our own previous flight) and refuses to arm in it without a stream."""
+    async def set_arming_mode(self) -> None:
         assert self.flavour is not None
         mode = ARDUPILOT.offboard_mode if self.flavour is ARDUPILOT else PX4.hold_mode
         await self._set_mode(mode, "the arming mode")
+
+    async def arm(self) -> None:
         await self._expect(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, what="arming")
 
     async def disarm(self, force: bool = False) -> None:
@@ -395,16 +399,19 @@ class PymavlinkLink(VehicleLink):
             self.mav.param_request_read_encode(*target, name.encode("ascii"), -1)), timeout_s, retries)
 
     async def set_param(self, name: str, value: float) -> float:
+        """Set in the parameter's own type (known from a read: PX4 refuses a REAL32 write to an
+        integer parameter, and encodes integers bytewise)."""
         target = (self.state.sysid or 1, self.state.compid or 1)
+        if name not in self._param_types and await self.get_param(name) is None:
+            raise LinkError(f"parameter {name}: the autopilot has no such parameter")
+        ptype = self._param_types.get(name, MAV_PARAM_TYPE_REAL32)
+        try:
+            wire = encode_value(value, ptype, bytewise=self.flavour is PX4)
+        except ValueError as exc:
+            raise LinkError(f"parameter {name}: {exc}") from None
         echoed = await self._param(name, lambda: self._send(self.mav.param_set_encode(
-            *target, name.encode("ascii"), float(value), mavlink.MAV_PARAM_TYPE_REAL32)),
-            retries=self.command_retries)
+            *target, name.encode("ascii"), wire, ptype)), retries=self.command_retries)
         if echoed is None:
             raise LinkError(f"parameter {name} was not acknowledged")
         return echoed
 
-
-def _param_name(raw: object) -> str:
-    """A param_id as text: pymavlink gives str or bytes, NUL-padded to 16 characters."""
-    text = raw if isinstance(raw, str) else bytes(raw).decode("ascii", "replace")  # type: ignore[arg-type]
-    return text.split("\x00", 1)[0]

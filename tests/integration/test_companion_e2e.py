@@ -287,7 +287,7 @@ def test_the_square_keeps_its_clean_bounds_on_a_host_that_stalls_both_processes(
     the clean bounds hold (RMS < 5 cm, peak < 15 cm, test_waypoint_mission_tracks_the_reference)
     and the vehicle never enters its offboard-loss failsafe. Before that (the controller on the
     clock line alone) the same schedule gave RMS 11-19 cm and a 0.5-1.0 m peak."""
-    from .conftest import Staller
+    from helpers.processes import Staller
 
     s = sitl(*LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
     c = companion("missions/waypoints.toml", s.url)

@@ -13,7 +13,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
 
-from .conftest import quat_angle_deg
+from helpers.processes import quat_angle_deg
 from .test_sitl_pymavlink import OFFBOARD, stream, switch_to_offboard, take_off
 
 pytestmark = pytest.mark.integration

@@ -20,7 +20,7 @@ from mavsdk.plugins.mavlink_direct import MavlinkMessage
 
 from companion.control import quaternion as quat
 
-from .conftest import quat_angle_deg
+from helpers.processes import quat_angle_deg
 
 pytestmark = pytest.mark.integration
 

@@ -11,7 +11,7 @@ from pymavlink import mavutil
 
 from companion.control import quaternion as quat
 
-from .conftest import quat_angle_deg
+from helpers.processes import quat_angle_deg
 
 pytestmark = pytest.mark.integration
 

@@ -1,0 +1,259 @@
+"""Real processes for the tests: the bundled vehicle, the relay, the companion, a ground station,
+and a host that stalls them. Shared by tests/integration and tests/autopilots."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import random
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from pymavlink import mavutil
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def child_env(**extra: str) -> dict[str, str]:
+    """The environment for a child process: unbuffered, and no signing key unless a test gives one
+    (a developer's own MAVLINK_SIGNING_KEY must not change what the tests fly)."""
+    env = {k: v for k, v in os.environ.items() if k != "MAVLINK_SIGNING_KEY"}
+    env.update(PYTHONUNBUFFERED="1", **extra)
+    return env
+
+
+class Staller:
+    """A host that steals CPU, made repeatable: from a seeded schedule, stops (SIGSTOP) one of the
+    given processes or all of them for a random while, lets them run (SIGCONT), waits, again.
+    Exponential gaps (mean ``mean_gap_s``), stalls uniform in ``stall_s``, all wall time."""
+
+    def __init__(self, pids: list[int], seed: int, mean_gap_s: float = 0.15,
+                 stall_s: tuple[float, float] = (0.01, 0.08)) -> None:
+        self.pids, self.rng = pids, random.Random(seed)
+        self.mean_gap_s, self.stall_s = mean_gap_s, stall_s
+        self.stalls, self.stalled_s = 0, 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        choices = [[p] for p in self.pids] + [self.pids]
+        while not self._stop.wait(self.rng.expovariate(1.0 / self.mean_gap_s)):
+            which, d = self.rng.choice(choices), self.rng.uniform(*self.stall_s)
+            try:
+                for p in which:
+                    os.kill(p, signal.SIGSTOP)
+                time.sleep(d)
+            except ProcessLookupError:
+                break
+            finally:
+                for p in which:
+                    with contextlib.suppress(ProcessLookupError):
+                        os.kill(p, signal.SIGCONT)
+            self.stalls, self.stalled_s = self.stalls + 1, self.stalled_s + d
+
+    def stop(self) -> tuple[int, float]:
+        """Stop stalling (everything left running); the stalls made and their total [s]."""
+        self._stop.set()
+        self._thread.join()
+        return self.stalls, self.stalled_s
+
+
+def kill_left_over(procs: list) -> None:
+    """Fixture teardown: whatever a test left running is killed (a failed test must not leak processes)."""
+    for p in procs:
+        if p.proc.poll() is None:
+            p.proc.kill()
+            p.proc.wait()
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class SitlProcess:
+    """``python -m sitl`` in its own process; :meth:`stop` returns its final report."""
+
+    def __init__(self, *args: str, speedup: float = 2.0, env: dict[str, str] | None = None) -> None:
+        self.port = free_udp_port()
+        self.speedup = speedup
+        cmd = [sys.executable, "-m", "sitl", "--listen", f"127.0.0.1:{self.port}", "--speedup", str(speedup), *args]
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     env=child_env(**(env or {})))
+        self.banner: list[str] = []
+        while True:
+            line = self.proc.stdout.readline()  # type: ignore[union-attr]
+            self.banner.append(line)
+            if "listening" in line:
+                break
+            if not line or len(self.banner) > 5:
+                rest = self.proc.communicate(timeout=5)[0]
+                raise RuntimeError(f"sitl did not start: {''.join(self.banner)}{rest}")
+        self.report: dict | None = None
+
+    @property
+    def url(self) -> str:
+        return f"127.0.0.1:{self.port}"
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def stop(self) -> dict:
+        if self.report is not None:
+            return self.report
+        if self.alive():
+            self.proc.send_signal(signal.SIGTERM)
+        out = self.proc.communicate(timeout=10)[0]
+        for line in out.splitlines():
+            if line.startswith("sitl: stopped "):
+                self.report = json.loads(line[len("sitl: stopped "):])
+                return self.report
+        raise RuntimeError(f"sitl gave no report (exit {self.proc.returncode}):\n{out}")
+
+
+class RelayProcess:
+    """``python -m sitl.relay`` between a client and a vehicle; :meth:`stop` returns its counters."""
+
+    def __init__(self, to: str, *args: str) -> None:
+        cmd = [sys.executable, "-m", "sitl.relay", "--listen", "127.0.0.1:0", "--to", to, *args]
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     env=child_env())
+        line = self.proc.stdout.readline()  # type: ignore[union-attr]
+        if "listening on" not in line:
+            raise RuntimeError(f"relay did not start: {line}{self.proc.communicate(timeout=5)[0]}")
+        self.url = line.split("listening on ")[1].split(",")[0]
+        self.report: dict | None = None
+
+    def outage_now(self) -> None:
+        self.proc.send_signal(signal.SIGUSR1)
+
+    def stop(self) -> dict:
+        if self.report is None:
+            if self.proc.poll() is None:
+                self.proc.send_signal(signal.SIGTERM)
+            out = self.proc.communicate(timeout=10)[0]
+            line = next(ln for ln in out.splitlines() if ln.startswith("relay: stopped "))
+            self.report = json.loads(line[len("relay: stopped "):])
+        return self.report
+
+
+class Client:
+    """A pymavlink ground station on a fresh UDP socket, talking to one vehicle."""
+
+    def __init__(self, url: str, source_system: int = 255) -> None:
+        self.m = mavutil.mavlink_connection(f"udpout:{url}", source_system=source_system, source_component=190)
+        self.m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        self.seen: dict[str, object] = {}
+        self.texts: list[str] = []
+
+    def recv(self, timeout: float = 0.2):
+        """The next message, waiting up to ``timeout`` s (0: only what is already queued)."""
+        msg = self.m.recv_match(blocking=timeout > 0, timeout=timeout if timeout > 0 else None)
+        if msg is not None:
+            kind = msg.get_type()
+            self.seen[kind] = msg
+            if kind == "STATUSTEXT":
+                self.texts.append(msg.text)
+        return msg
+
+    def wait(self, kind: str | tuple[str, ...], cond=lambda m: True, timeout: float = 10.0):
+        kinds = (kind,) if isinstance(kind, str) else kind
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            msg = self.recv(0.1)
+            if msg is not None and msg.get_type() in kinds and cond(msg):
+                return msg
+        raise AssertionError(f"no {kinds} within {timeout} s")
+
+    def latest(self, kind: str, timeout: float = 5.0):
+        """The newest message of ``kind``: drain what is queued, then wait for one if none."""
+        newest = None
+        while (msg := self.recv(0.0)) is not None:
+            if msg.get_type() == kind:
+                newest = msg
+        return newest if newest is not None else self.wait(kind, timeout=timeout)
+
+    def text(self, fragment: str, timeout: float = 10.0) -> str:
+        """A STATUSTEXT containing ``fragment``, already received or arriving within ``timeout``."""
+        for t in self.texts:
+            if fragment in t:
+                return t
+        return self.wait("STATUSTEXT", lambda m: fragment in m.text, timeout).text
+
+    def command(self, command: int, *params: float, timeout: float = 5.0) -> int:
+        p = list(params) + [0.0] * (7 - len(params))
+        self.m.mav.command_long_send(1, 1, command, 0, *p)
+        ack = self.wait("COMMAND_ACK", lambda a: a.command == command, timeout)
+        return ack.result
+
+    def set_mode(self, main: int, sub: int = 0) -> int:
+        return self.command(176, 1, main, sub)
+
+    def attitude_target(self, q, rates=(0.0, 0.0, 0.0), thrust: float = 0.5, type_mask: int = 0,
+                        target=(1, 1)) -> None:
+        self.m.mav.set_attitude_target_send(0, target[0], target[1], type_mask, list(q), *rates, thrust)
+
+    def param(self, name: str, timeout: float = 5.0) -> float:
+        self.m.mav.param_request_read_send(1, 1, name.encode(), -1)
+        return self.wait("PARAM_VALUE", lambda p: p.param_id == name, timeout).param_value
+
+    def close(self) -> None:
+        self.m.close()
+
+
+def quat_angle_deg(a, b) -> float:
+    """Rotation angle between two attitudes, accurate near zero (atan2 form, not acos)."""
+    from companion.control import quaternion as quat
+
+    return math.degrees(quat.angle_between(tuple(float(x) for x in a), tuple(float(x) for x in b)))
+
+
+class CompanionProcess:
+    """``python -m companion fly ...`` in its own process; :meth:`wait_for` watches its output."""
+
+    def __init__(self, mission: str, url: str, out_dir: Path, *args: str, env: dict[str, str] | None = None) -> None:
+        connect = url if "://" in url else f"udp://{url}"
+        cmd = [sys.executable, "-m", "companion", "fly", str(ROOT / mission), "--connect", connect,
+               "--out", str(out_dir), "--no-plots", *args]
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     env=child_env(**(env or {})))
+        self.lines: list[str] = []
+        self.out_dir = out_dir
+
+    def wait_for(self, fragment: str, timeout: float = 60.0) -> str:
+        import selectors
+
+        sel = selectors.DefaultSelector()
+        sel.register(self.proc.stdout, selectors.EVENT_READ)  # type: ignore[arg-type]
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if sel.select(timeout=0.2):
+                line = self.proc.stdout.readline()  # type: ignore[union-attr]
+                if not line:
+                    break
+                self.lines.append(line)
+                if fragment in line:
+                    return line
+        raise AssertionError(f"companion never printed {fragment!r}; output:\n{''.join(self.lines)}")
+
+    def finish(self, timeout: float = 120.0) -> tuple[int, str]:
+        out, _ = self.proc.communicate(timeout=timeout)
+        self.lines.append(out)
+        return self.proc.returncode, "".join(self.lines)
+
+    def flight_dir(self) -> Path:
+        for line in reversed("".join(self.lines).splitlines()):  # "companion: <result>: ... -> FOLDER"
+            if line.startswith("companion: ") and " -> " in line:
+                return Path(line.rsplit(" -> ", 1)[1].strip())
+        dirs = sorted(p for p in self.out_dir.iterdir() if p.is_dir())
+        assert dirs, "no flight folder written"
+        return dirs[-1]
