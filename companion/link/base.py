@@ -5,6 +5,7 @@ from __future__ import annotations
 import abc
 import asyncio
 import math
+import time
 from collections import Counter
 from typing import Callable
 
@@ -20,6 +21,10 @@ __all__ = ["LinkError", "VehicleLink", "TrafficHook"]
 
 TrafficHook = Callable[[bytes], None]
 """called with every raw datagram sent or received (for the .tlog)"""
+
+
+REASON_WAIT_S = 0.3
+"""wall seconds to wait for the text that explains a refused command"""
 
 
 class LinkError(RuntimeError):
@@ -54,6 +59,17 @@ class VehicleLink(abc.ABC):
         if admitted.feeds_clock:
             self.clock.observe(admitted.t_s, wall)
             self.telemetry_event.set()
+
+    async def _refusal_reason(self, before: int) -> str:
+        """What the autopilot said after a refusal (texts since index ``before``), the most severe
+        first. The reason (STATUSTEXT, or an EVENT on PX4) follows the answer: give it a moment."""
+        st = self.state
+        end = time.monotonic() + REASON_WAIT_S
+        while st.texts_seen == before and time.monotonic() < end:
+            await asyncio.sleep(0.01)
+        new = st.texts_since(before)
+        ranked = sorted(enumerate(new), key=lambda it: (it[1][0], -it[0]))[:4]  # MAV_SEVERITY: lower is worse
+        return "; ".join(text for _, (_, text) in ranked)
 
     def _valid(self, accepted: bool) -> bool:
         """Pass through a ``VehicleState.set_*`` result, counting a refused sample."""

@@ -24,6 +24,7 @@ from typing import Any
 
 from mavsdk.asyncio import ComponentType, Configuration, ForwardingOption, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
+from mavsdk.asyncio.plugins.events import EventsAsync
 from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
 from mavsdk.asyncio.plugins.param import ParamAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
@@ -138,7 +139,8 @@ class MavsdkLink(VehicleLink):
         try:
             async with asyncio.TaskGroup() as tg:
                 for coro in (self._attitude(), self._rates(), self._position(), self._imu(), self._mode(),
-                             self._armed(), self._landed(), self._texts(), self._health(), self._sender()):
+                             self._armed(), self._landed(), self._texts(), self._events(), self._health(),
+                             self._sender()):
                     tg.create_task(coro)
                 await stop.wait()
                 raise _Stop()
@@ -204,7 +206,16 @@ class MavsdkLink(VehicleLink):
 
     async def _texts(self) -> None:
         async for text in self.telemetry.subscribe_status_text():
-            self.state.statustexts.append((0, text.text))
+            self.state.add_text(6, text.text)
+
+    async def _events(self) -> None:
+        """PX4's EVENTs (refusal reasons, failsafes): MAVSDK fetches their texts from the vehicle."""
+        try:
+            async for event in EventsAsync(self._system).subscribe_events():
+                self.state.add_text(int(event.log_level), event.message)
+                self.stats["events"] += 1
+        except Exception:  # an autopilot without events (ArduPilot) or an older MAVSDK
+            self.stats["events_unavailable"] += 1
 
     async def _sender(self) -> None:
         while True:
@@ -218,10 +229,11 @@ class MavsdkLink(VehicleLink):
     # --- commands --------------------------------------------------------------------------
 
     async def _do(self, what: str, coro: Any) -> None:
+        before = self.state.texts_seen
         try:
             await coro
         except Exception as exc:  # ActionError etc. carry the autopilot's refusal
-            reason = self.state.statustexts[-1][1] if self.state.statustexts else ""
+            reason = await self._refusal_reason(before)
             raise LinkError(f"{what} refused: {exc}{' (' + reason + ')' if reason else ''}") from None
 
     async def set_arming_mode(self) -> None:
@@ -243,13 +255,14 @@ class MavsdkLink(VehicleLink):
                   "param7": 0.0}
         cmd = MavlinkMessage(message_name="COMMAND_LONG", system_id=245, component_id=190,
                              target_system_id=self.state.sysid, target_component_id=1, fields_json=json.dumps(fields))
+        before = self.state.texts_seen
         try:
             ack = await self.direct.send_command(cmd)
             result = json.loads(ack.fields_json).get("result", -1) if ack.fields_json else -1
         except Exception as exc:
             raise LinkError(f"offboard mode: {exc}") from None
         if result != 0:
-            reason = self.state.statustexts[-1][1] if self.state.statustexts else ""
+            reason = await self._refusal_reason(before)
             raise LinkError(f"offboard mode refused (MAV_RESULT {result}){': ' + reason if reason else ''}")
 
     async def hold(self) -> None:

@@ -14,6 +14,7 @@ replayed) are believed: a spoofed heartbeat or position cannot steer the control
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import time
 from collections import Counter
@@ -30,6 +31,8 @@ from companion.link.state import VehicleState
 from .base import LinkError, TrafficHook, VehicleLink
 from .url import parse_url
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
+from companion.mavlink import ftp
+from companion.mavlink.events import MSG_ID_EVENT, EventCatalogue, parse_event
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, decode_value, encode_value, param_name
 from companion.mavlink.signing import SignatureCheck, enable_signing, fingerprint
 from companion.mavlink.udp import UdpEndpoint
@@ -38,6 +41,7 @@ from companion.mavlink.wire import new_parser, parse_datagram
 __all__ = ["PymavlinkLink"]
 
 QUEUE_SIZE = 2000
+_RESULTS = {1: "temporarily rejected", 2: "denied", 3: "unsupported", 4: "failed", 5: "in progress", 6: "cancelled"}
 POSITION_TARGET_MASK = 2048
 """SET_POSITION_TARGET_LOCAL_NED: position, velocity, acceleration and yaw used; yaw rate ignored"""
 MAX_PARAMS = 4096
@@ -83,6 +87,11 @@ class PymavlinkLink(VehicleLink):
         """one command in flight at a time: an ACK names only the command id, not the request"""
         self._params: dict[str, asyncio.Future[float]] = {}
         self._param_types: dict[str, int] = {}
+        self._ftp_reply: asyncio.Future[ftp.Packet] | None = None
+        self._ftp_lock = asyncio.Lock()
+        self.event_error = ""
+        self.events: EventCatalogue | None = None
+        """PX4's event texts, fetched from the vehicle at connection (None: events read as ids)"""
         self._connected = asyncio.Event()
         self._closed = False
 
@@ -185,15 +194,21 @@ class PymavlinkLink(VehicleLink):
 
     def _handle(self, kind: str, msg: Any, wall: float) -> None:
         st = self.state
-        src = msg.get_srcSystem()
+        src, comp = _source(msg, kind)
         if kind == "HEARTBEAT":
             flavour = flavour_for(msg.autopilot)
             if flavour is None:
                 return  # a ground station or a component that is not an autopilot
             if st.sysid == 0:
-                st.sysid, st.compid, st.autopilot = src, msg.get_srcComponent(), flavour.name
+                st.sysid, st.compid, st.autopilot = src, comp, flavour.name
+                st.vehicle_type = msg.type
                 self.flavour = flavour
-            if src != st.sysid or msg.get_srcComponent() != st.compid:
+            if src != st.sysid or comp != st.compid:
+                self.stats["foreign_heartbeats"] += 1
+                return
+            if flavour is not self.flavour or msg.type != st.vehicle_type:
+                # the locked autopilot cannot change its kind: a forged or misrouted heartbeat
+                self.stats["heartbeats_of_another_kind"] += 1
                 return
             st.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
             st.mode = flavour.mode_name(msg.custom_mode)
@@ -203,7 +218,8 @@ class PymavlinkLink(VehicleLink):
             if not self._connected.is_set():
                 self._connected.set()
             return
-        if st.sysid == 0 or src != st.sysid:
+        if st.sysid == 0 or src != st.sysid or comp != st.compid:
+            # telemetry counts only from the autopilot's own component, not any component of its system
             self.stats["foreign_messages"] += 1
             return
         st.wall_last = wall
@@ -230,10 +246,28 @@ class PymavlinkLink(VehicleLink):
             if msg.onboard_control_sensors_present & prearm or self.flavour is PX4:
                 st.armable = bool(msg.onboard_control_sensors_health & prearm)
         elif kind == "STATUSTEXT":
-            st.statustexts.append((msg.severity, msg.text))
+            st.add_text(msg.severity, msg.text)
+        elif kind == f"UNKNOWN_{MSG_ID_EVENT}":  # PX4 events: not in pymavlink's dialects
+            event = parse_event(_payload(msg))
+            if event is not None:
+                text = self.events.text(event) if self.events is not None else f"PX4 event 0x{event.id:08x}"
+                st.add_text(event.severity, text)
+                self.stats["events"] += 1
+        elif kind == "FILE_TRANSFER_PROTOCOL":
+            if msg.target_system in (0, self.mav.srcSystem) and self._ftp_reply is not None \
+                    and not self._ftp_reply.done():
+                self._ftp_reply.set_result(ftp.decode(bytes(msg.payload)))
         elif kind == "COMMAND_ACK":
+            # only an answer addressed to us (0: broadcast, as some autopilots do) to a command in flight
+            us = (self.mav.srcSystem, self.mav.srcComponent)
+            if msg.target_system not in (0, us[0]) or msg.target_component not in (0, us[1]):
+                self.stats["acks_not_for_us"] += 1
+                return
             fut = self._acks.get(msg.command)
-            if fut is not None and not fut.done() and msg.result != mavlink.MAV_RESULT_IN_PROGRESS:
+            if fut is None or fut.done():
+                self.stats["acks_unasked"] += 1
+                return
+            if msg.result != mavlink.MAV_RESULT_IN_PROGRESS:
                 fut.set_result(msg.result)
         elif kind == "PARAM_ERROR":
             # ArduPilot 4.7+ answers a read of a parameter it does not have, instead of silence
@@ -277,6 +311,8 @@ class PymavlinkLink(VehicleLink):
         assert self.flavour is not None
         if self.flavour is ARDUPILOT:
             await self._prepare_ardupilot()
+        else:
+            await self._load_events()
         for msg_id, hz in STREAM_RATES_HZ.items():
             await self.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz, require_ack=False)
         end = time.monotonic() + timeout_s
@@ -285,6 +321,55 @@ class PymavlinkLink(VehicleLink):
                 raise LinkError("the autopilot sends no position and attitude (LOCAL_POSITION_NED, "
                                 "ATTITUDE_QUATERNION)")
             await asyncio.sleep(0.05)
+
+    async def fetch_file(self, path: str, timeout_s: float = 1.0, max_bytes: int = 4 << 20) -> bytes:
+        """A file from the autopilot over MAVLink FTP (LinkError if it cannot be read)."""
+        async with self._ftp_lock:
+            seq = 0
+
+            async def request(opcode: int, session: int = 0, offset: int = 0, data: bytes = b"",
+                              size: int | None = None) -> ftp.Packet:
+                nonlocal seq
+                for _ in range(3):
+                    seq += 1
+                    self._ftp_reply = asyncio.get_running_loop().create_future()
+                    self._send(self.mav.file_transfer_protocol_encode(
+                        0, self.state.sysid or 1, self.state.compid or 1,
+                        list(ftp.encode(seq, session, opcode, offset, data, size))))
+                    try:
+                        return await asyncio.wait_for(self._ftp_reply, timeout_s)
+                    except TimeoutError:
+                        continue
+                raise LinkError(f"MAVLink FTP: no answer reading {path}")
+
+            opened = await request(ftp.OPEN_FILE_RO, data=path.encode() + b"\x00")
+            if opened.opcode != ftp.ACK:
+                raise LinkError(f"MAVLink FTP: cannot open {path}")
+            session, out = opened.session, bytearray()
+            try:
+                while len(out) < max_bytes:
+                    got = await request(ftp.READ_FILE, session, len(out), size=ftp.DATA_MAX)
+                    if got.opcode == ftp.NAK:
+                        if got.data[:1] == bytes([ftp.ERR_EOF]):
+                            break
+                        raise LinkError(f"MAVLink FTP: reading {path} failed")
+                    if not got.data:
+                        break
+                    out += got.data
+            finally:
+                with contextlib.suppress(LinkError):
+                    await request(ftp.TERMINATE_SESSION, session)
+            return bytes(out)
+
+    async def _load_events(self) -> None:
+        """PX4's event catalogue, so refusals read as text (best effort: a few seconds at most)."""
+        try:
+            blob = await asyncio.wait_for(self.fetch_file("/etc/extras/all_events.json.xz"), 8.0)
+            self.events = EventCatalogue.from_bytes(blob)
+            self.stats["event_texts"] = len(self.events)
+        except (LinkError, TimeoutError, ValueError, OSError) as exc:
+            self.stats["event_texts_unavailable"] += 1
+            self.event_error = str(exc) or type(exc).__name__
 
     async def _prepare_ardupilot(self) -> None:
         """ArduPilot sends nothing until asked; thrust must mean throttle (GUID_OPTIONS bit 3)."""
@@ -321,10 +406,12 @@ class PymavlinkLink(VehicleLink):
         raise LinkError(f"command {command} was not acknowledged after {self.command_retries} tries")
 
     async def _expect(self, command: int, *params: float, what: str) -> None:
+        before = self.state.texts_seen
         result = await self.command_long(command, *params)
         if result != mavlink.MAV_RESULT_ACCEPTED:
-            reason = self.state.statustexts[-1][1] if self.state.statustexts else ""
-            raise LinkError(f"{what} refused (MAV_RESULT {result}){': ' + reason if reason else ''}")
+            reason = await self._refusal_reason(before)
+            raise LinkError(f"{what} refused ({_RESULTS.get(result, f'MAV_RESULT {result}')})"
+                            f"{': ' + reason if reason else ''}")
 
     async def _set_mode(self, mode: tuple[int, int], what: str) -> None:
         await self._expect(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, *mode, what=what)
@@ -415,3 +502,33 @@ class PymavlinkLink(VehicleLink):
             raise LinkError(f"parameter {name} was not acknowledged")
         return echoed
 
+
+def _payload(msg: Any) -> bytes:
+    """The payload of a frame pymavlink could not decode (MAVLink 2: 10-byte header, 2-byte CRC)."""
+    raw = bytes(msg.get_msgbuf())
+    start = 10 if raw[:1] == b"\xfd" else 6
+    return raw[start:start + raw[1]]
+
+
+def _source(msg: Any, kind: str) -> tuple[int, int]:
+    """Sending system and component; read from the frame for messages pymavlink could not decode
+    (it leaves their header unset)."""
+    if kind.startswith("UNKNOWN_"):
+        raw = bytes(msg.get_msgbuf())
+        return (raw[5], raw[6]) if raw[:1] == b"\xfd" else (raw[3], raw[4])
+    return msg.get_srcSystem(), msg.get_srcComponent()
+
+
+def _source(msg: Any, kind: str) -> tuple[int, int]:
+    """Sending system and component; read from the frame for messages pymavlink could not decode
+    (it leaves their header unset)."""
+    if kind.startswith("UNKNOWN_"):
+        raw = bytes(msg.get_msgbuf())
+        return (raw[5], raw[6]) if raw[:1] == b"\xfd" else (raw[3], raw[4])
+    return msg.get_srcSystem(), msg.get_srcComponent()
+
+
+def _reasons(texts: list[tuple[int, str]], most: int = 4) -> str:
+    """What the autopilot said after a refusal, the most severe first (MAV_SEVERITY: lower is worse)."""
+    ranked = sorted(enumerate(texts), key=lambda it: (it[1][0], -it[0]))[:most]
+    return "; ".join(text for _, (_, text) in ranked)

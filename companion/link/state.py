@@ -40,6 +40,8 @@ class VehicleState:
     """"px4" or "ardupilot", from the heartbeat"""
     sysid: int = 0
     compid: int = 0
+    vehicle_type: int = 0
+    """MAV_TYPE from the autopilot's first heartbeat"""
     armed: bool = False
     mode: str = "UNKNOWN"
     """the flavour's mode name (PX4: OFFBOARD, HOLD, TAKEOFF, LAND, ...; ArduPilot: GUIDED, LOITER, ...)"""
@@ -67,6 +69,8 @@ class VehicleState:
     wall_last: float = -math.inf
     """arrival of the newest message of any kind from the vehicle"""
     statustexts: deque[tuple[int, str]] = field(default_factory=lambda: deque(maxlen=100))
+    texts_seen: int = 0
+    """how many texts have arrived in all (statustexts keeps the last 100)"""
     params: dict[str, float] = field(default_factory=dict)
 
     # --- updates: each refuses (returns False, changes nothing) what cannot be a real sample ---
@@ -102,6 +106,16 @@ class VehicleState:
         self.q = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
         self.t_att, self.wall_att = t, wall
         return True
+
+    def add_text(self, severity: int, text: str) -> None:
+        """A STATUSTEXT or a decoded EVENT (MAV_SEVERITY)."""
+        self.statustexts.append((severity, text))
+        self.texts_seen += 1
+
+    def texts_since(self, seen: int) -> list[tuple[int, str]]:
+        """The texts that arrived after ``texts_seen`` was ``seen`` (as many as are kept)."""
+        n = min(self.texts_seen - seen, len(self.statustexts))
+        return list(self.statustexts)[len(self.statustexts) - n:] if n > 0 else []
 
     def set_rates(self, omega_rad_s: Vec3) -> bool:
         if not _within(omega_rad_s, MAX_RATE_RAD_S):

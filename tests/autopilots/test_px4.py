@@ -133,3 +133,38 @@ def test_a_gcs_taking_control_ends_the_mission_and_the_companion_lets_go(px4_bui
         h = wait_heartbeat(gcs, lambda h: True, timeout=10)
         assert h.custom_mode == HOLD and h.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED
         gcs.close()
+
+
+@pytest.mark.parametrize("backend", ["pymavlink", "mavsdk"])
+def test_a_refusal_reads_as_text_from_px4s_events(px4_build, backend):
+    """PX4 v1.16 explains a refused arming with EVENTs (id 410), not STATUSTEXT: the companion's
+    error must carry the readable reason (pymavlink: the catalogue fetched over MAVLink FTP;
+    MAVSDK: its events plugin). Provoked by arming in OFFBOARD without a setpoint stream."""
+    import asyncio
+
+    from companion.link import LinkError, open_link
+
+    async def refused() -> str:
+        with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
+            link = open_link(px4.url, backend)
+            stop = asyncio.Event()
+            async with link:
+                reader = asyncio.create_task(link.run(stop))
+                await link.wait_connected(30)
+                await asyncio.sleep(0.5)
+                await link.start_offboard()
+                try:
+                    for _ in range(20):  # until PX4 has taken OFFBOARD (its heartbeat says so)
+                        if link.state.offboard:
+                            break
+                        await asyncio.sleep(0.1)
+                    await link.arm()
+                except LinkError as exc:
+                    return str(exc)
+                finally:
+                    stop.set()
+                    await reader
+        return ""
+
+    message = asyncio.run(refused())
+    assert "Arming denied" in message or "No offboard signal" in message, message
