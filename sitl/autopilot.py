@@ -154,6 +154,9 @@ class AutopilotParams:
     """ArduPilot GUID_TIMEOUT: attitude targets older than this are no longer flown; it holds"""
     angle_max_deg: float = 30.0
     """ArduPilot ANGLE_MAX / 100: the tilt an attitude target is clipped to in GUIDED"""
+    offboard_loss_hold: bool = False
+    """offboard loss: hold for ``failsafe_hold_s``, then land (PX4 with RC and COM_OBL_RC_ACT hold);
+    False: descend and land at once (PX4 v1.16 without RC, the default)"""
     guided_thrust_is_throttle: bool = False
     """ArduPilot GUID_OPTIONS bit 3: thrust is throttle (else a climb rate, 0.5 = hold altitude)"""
 
@@ -170,6 +173,8 @@ MAV_CMD_NAV_TAKEOFF = 22
 MAV_CMD_DO_SET_MODE = 176
 MAV_CMD_COMPONENT_ARM_DISARM = 400
 FORCE_DISARM = 21196.0
+
+OFFBOARD_LOST_DESCENDING = "offboard lost, descending"
 
 _POSITION_MODES = (Mode.HOLD, Mode.TAKEOFF, Mode.LAND, Mode.RTL, Mode.GUIDED)
 
@@ -199,6 +204,8 @@ class Autopilot:
         self.pos_dt = self.pos_div * self.dt
         self.ground_z = sc.airframe.ground_z_m
         self.mode = Mode.HOLD
+        self.user_mode = Mode.HOLD
+        """the last mode a command chose (PX4 returns to it after a disarm)"""
         self.armed = False
         self.landed = True
         self.arm_time = 0.0
@@ -302,6 +309,8 @@ class Autopilot:
                 return self._deny("Arming denied: not on the ground")
             if self.t < 1.0:
                 return self._deny("Arming denied: estimator settling", MavResult.TEMPORARILY_REJECTED)
+            if self.mode == Mode.OFFBOARD and not self.setpoint_stream_active(None):
+                return self._deny("Arming denied: No offboard signal", MavResult.TEMPORARILY_REJECTED)
             self.armed = True
             self.arm_time = self.t
             self.lifted_off = False
@@ -324,9 +333,19 @@ class Autopilot:
         self.armed = False
         self.vehicle.motors_on = False
         self.failsafe = None
-        if self.mode in (Mode.LAND, Mode.TAKEOFF, Mode.RTL, Mode.OFFBOARD):
-            self.mode = Mode.HOLD
+        if self.mode in (Mode.LAND, Mode.TAKEOFF, Mode.RTL):
+            # PX4 returns to the last mode the user chose (OFFBOARD after an offboard flight, where it
+            # then refuses to arm without a stream); ArduCopter to GUIDED after a GUIDED take-off
+            self.mode = self.user_mode if not self.ardupilot else Mode.GUIDED
         self._say(Severity.INFO, text)
+
+    @property
+    def reported_mode(self) -> Mode:
+        """The mode the heartbeat shows: PX4 v1.16 shows POSCTL while its offboard-loss failsafe
+        descends without RC."""
+        if self.failsafe == OFFBOARD_LOST_DESCENDING and not self.ardupilot:
+            return Mode.POSCTL
+        return self.mode
 
     def _takeoff(self, altitude_amsl_m: float) -> CommandResult:
         if not self.armed:
@@ -375,6 +394,10 @@ class Autopilot:
             return self._deny("Mission denied: no mission loaded")
         if mode == Mode.GUIDED and not self.ardupilot or mode == Mode.OFFBOARD and self.ardupilot:
             return self._deny(f"{mode.name} denied: not a mode of this autopilot")
+        if mode == Mode.OFFBOARD and not self.armed and not self.ardupilot:
+            # PX4 takes a mode while disarmed as the user's intention (arming then needs a stream)
+            self.mode = self.user_mode = Mode.OFFBOARD
+            return CommandResult(MavResult.ACCEPTED)
         if mode == Mode.OFFBOARD:
             if not self.setpoint_stream_active(sender):
                 return self._deny("Offboard denied: no setpoint stream (>2 Hz)")
@@ -393,6 +416,8 @@ class Autopilot:
         if self.failsafe is not None:
             self._say(Severity.INFO, "Failsafe cleared by mode change")
             self.failsafe = None
+        if mode not in (Mode.TAKEOFF, Mode.LAND, Mode.RTL):
+            self.user_mode = mode
         self._enter(mode)
         return CommandResult(MavResult.ACCEPTED)
 
@@ -559,11 +584,17 @@ class Autopilot:
     def _failsafes(self) -> None:
         p, t = self.params, self.t
         self._sensor_failsafes()
-        if self.mode == Mode.OFFBOARD and t - self.last_setpoint_time > p.offboard_loss_timeout_s:
-            self.failsafe, self.failsafe_time = "offboard lost", t
-            self._say(Severity.CRITICAL, "Failsafe: offboard lost, holding")
-            self._enter(Mode.HOLD)
-        elif self.failsafe and self.mode == Mode.HOLD and t - self.failsafe_time > p.failsafe_hold_s:
+        if self.mode == Mode.OFFBOARD and self.armed and t - self.last_setpoint_time > p.offboard_loss_timeout_s:
+            self.failsafe_time = t
+            if self.params.offboard_loss_hold:
+                self.failsafe = "offboard lost"
+                self._say(Severity.CRITICAL, "Failsafe: offboard lost, holding")
+                self._enter(Mode.HOLD)
+            else:  # PX4 v1.16 without RC: descend at once (its heartbeat says POSCTL meanwhile)
+                self.failsafe = OFFBOARD_LOST_DESCENDING
+                self._say(Severity.CRITICAL, "Failsafe: offboard lost, descending")
+                self._enter(Mode.LAND)
+        elif self.failsafe == "offboard lost" and self.mode == Mode.HOLD and t - self.failsafe_time > p.failsafe_hold_s:
             self._say(Severity.CRITICAL, "Failsafe: landing")
             self._enter(Mode.LAND)
             self.failsafe = "offboard lost, landing"

@@ -39,6 +39,13 @@ class ParamChanges:
         self.log(f"{name} {have:g} -> {value:g} ({why}; put back when the flight ends)")
         return True
 
+    async def set_bits(self, name: str, bits: int, why: str) -> bool:
+        """Set ``bits`` in an integer bitmask parameter, leaving the others as they are."""
+        have = await self.link.get_param(name)
+        if have is None:
+            return False
+        return await self.set(name, float(int(have) | bits), why)
+
     async def restore(self) -> dict[str, float]:
         """Put back every changed parameter; returns those that could not be (name -> original)."""
         for name, original in reversed(list(self.originals.items())):
@@ -75,3 +82,30 @@ async def thrust_scale(link: VehicleLink, weight_n: float, configured_n: float, 
     if hover_throttle:
         return weight_n / hover_throttle, "mission hover_throttle"
     return None
+
+
+GUIDED_TIMEOUT_S = 0.5
+"""ArduPilot GUID_TIMEOUT while the companion flies: its default (3 s) keeps a dead companion's last
+attitude target, rotated by the last body rates, for 3 s (a vehicle pitched to 39 deg and flew 35 m)"""
+
+
+async def prepare_ardupilot(params: ParamChanges, log: Callable[[str], None]) -> None:
+    """What GUIDED needs to fly this controller's attitude targets as the paper means them, each
+    change put back at the end:
+
+    - GUID_OPTIONS bit 3: thrust is throttle, not a climb rate;
+    - GUID_TIMEOUT short (GUIDED_TIMEOUT_S): a silent companion is noticed in half a second;
+    - ATC_RATE_FF_ENAB 0: ArduPilot shapes a commanded attitude by its input time constant
+      (ATC_INPUT_TC) when feed-forward is on; that lag alone was 10.3 vs 2.0 cm RMS on the square;
+    - angle boost off: ArduPilot multiplies throttle by 1/cos(tilt) on top of the full thrust we
+      send (the vehicle climbed ~15 cm in every turn).
+
+    ANGLE_MAX is left alone: GUIDED does not limit attitude targets to it (37.6 deg flown with 30 set).
+    """
+    await params.set_bits("GUID_OPTIONS", 8, "thrust is throttle")
+    if not await params.set("GUID_TIMEOUT", GUIDED_TIMEOUT_S, "a silent companion is noticed at once"):
+        log("GUID_TIMEOUT: no such parameter; a dead companion's last target is held for ArduPilot's default")
+    await params.set("ATC_RATE_FF_ENAB", 0.0, "attitude targets flown as sent, not shaped")
+    for name in ("ANGLE_BOOST", "ATC_ANG_BOOST"):
+        if await params.set(name, 0.0, "no extra throttle in tilt: the controller sends the full thrust"):
+            break

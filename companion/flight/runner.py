@@ -38,7 +38,7 @@ from .health import HealthMonitor
 from .offboard import OffboardController, PositionTarget, Setpoint
 from .output import choose_output
 from .pacing import TickGrid
-from .prepare import ParamChanges, thrust_scale
+from .prepare import ParamChanges, prepare_ardupilot, thrust_scale
 from .recorder import FlightRecorder
 from .silence import AwakeSilence
 from .steps import run_step
@@ -220,9 +220,23 @@ class Flight:
             if verdict.link_lost:
                 raise LinkLost(verdict.link_lost)
             if verdict.hold:
-                self._in_background(self.link.hold())  # retries while the link is down
+                self._in_background(self._hold_while_ours())
             if verdict.breach:
                 self._breach = verdict.breach
+
+    async def _hold_while_ours(self) -> None:
+        """Command hold, retried while the link is down, but only while the vehicle still flies our
+        setpoints: a retry that lands after the autopilot's own failsafe began would cancel it."""
+        st = self.link.state
+        for _ in range(10):
+            if not supervisor.may_command_hold(self.expect_offboard, st.offboard):
+                self.log(f"the autopilot left offboard by itself (mode {st.mode}): no hold sent")
+                return
+            try:
+                await self.link.hold(attempts=1)
+                return
+            except LinkError:
+                continue
 
     def _volume_breach(self) -> str | None:
         volume = getattr(self.mission.safety, "volume", None)
@@ -357,6 +371,7 @@ class Flight:
         link, m = self.link, self.mission
         try:
             self.log(f"connecting to {self.opt.connect} ({self.opt.backend})")
+            link.progress = self.log
             await link.wait_connected(self.opt.connect_timeout_s)
             self.log(f"connected: {link.state.autopilot} system {link.state.sysid}, mode {link.state.mode}")
             self.output = choose_output(self.opt.output, link.state.autopilot)
@@ -371,7 +386,8 @@ class Flight:
         except Interrupted:
             self.recorder.end(link.state.t, False, "interrupted")
             self.log("interrupted: holding, then landing")
-            await self._recover()
+            await self._recover(supervisor.recovery(self.expect_offboard, link.state.offboard, False, link.state.mode,
+                                                    link.state.autopilot) if self.expect_offboard else "hold_then_land")
             result = ("interrupted", "interrupted by the operator; landed and disarmed" if not link.state.armed else
                       "interrupted by the operator")
         except (MissionAbort, LinkError) as exc:
@@ -379,9 +395,9 @@ class Flight:
             self.log(f"aborted: {exc}")
             self.failure = str(exc)
             if link.state.sysid and time.monotonic() - link.state.wall_last < m.safety.link_lost_s:
-                pilot = supervisor.leave_to_autopilot(self.expect_offboard, link.state.offboard,
-                                                      supervisor.outage_recent(self.watch, time.monotonic()))
-                await self._recover(leave_to_autopilot=pilot)
+                await self._recover(supervisor.recovery(
+                    self.expect_offboard, link.state.offboard, supervisor.outage_recent(self.watch, time.monotonic()),
+                    link.state.mode, link.state.autopilot))
             result = ("aborted", str(exc))
         finally:
             self.engaged = False
@@ -389,9 +405,10 @@ class Flight:
         self.finished.set()
         return result
 
-    async def _recover(self, leave_to_autopilot: bool = False) -> None:
-        """Stop streaming; hold; land; wait until disarmed. If the autopilot left offboard by itself
-        (a failsafe, or a pilot), it is in charge: stop without fighting it."""
+    async def _recover(self, how: str = "hold_then_land") -> None:
+        """Stop streaming, then as :func:`supervisor.recovery` decided: hold and land, land, or leave
+        the vehicle to the autopilot that took it (a pilot, or its failsafe: never fought, never
+        cancelled); wait until disarmed."""
         self.engaged = False
         self.expect_offboard = False
         self._breach = None
@@ -400,13 +417,15 @@ class Flight:
         link = self.link
         if not link.state.armed:
             return
-        if leave_to_autopilot:
+        if how == "leave":
             self.log(f"the autopilot (mode {link.state.mode}) has control: the companion stops here")
             return
-        self.log("holding, then landing")
+        self.log("holding, then landing" if how == "hold_then_land" else f"the vehicle holds ({link.state.mode}): "
+                 "landing it")
         with contextlib.suppress(LinkError):
-            await link.hold()
-            await asyncio.sleep(0.5 / max(link.clock.rate, 1e-3))
+            if how == "hold_then_land":
+                await link.hold()
+                await asyncio.sleep(0.5 / max(link.clock.rate, 1e-3))
             await link.land()
         self.interrupted.clear()
         with contextlib.suppress(MissionAbort, Interrupted):
@@ -421,7 +440,7 @@ class Flight:
         t_max, source = found
         self.log(f"thrust scale {t_max:.2f} N at full throttle ({source})")
         if link.state.autopilot == "ardupilot":
-            await self._ardupilot_lean_angle()
+            await prepare_ardupilot(self.params, self.log)
         gains = m.gains
         if self.link.state.specific_force_body_m_s2 is None:
             gains = dataclasses.replace(gains, observer_uses_imu=False)
@@ -454,17 +473,6 @@ class Flight:
                     raise
                 self.log(f"{exc}; retrying")
                 await self.sleep_v(1.0)
-
-    async def _ardupilot_lean_angle(self) -> None:
-        """ArduCopter clips attitude targets to ANGLE_MAX (30 deg by default): raise it to the
-        mission's tilt bound, or the 45 deg hover could never be flown."""
-        want = 100.0 * self.mission.safety.max_tilt_deg
-        have = await self.link.get_param("ANGLE_MAX")
-        if have is not None and have < want:
-            got = await self.link.set_param("ANGLE_MAX", want)
-            if got < want:
-                raise MissionAbort(f"ANGLE_MAX is {got / 100:g} deg and could not be raised to {want / 100:g}")
-            self.log(f"ANGLE_MAX raised from {have / 100:g} to {want / 100:g} deg (mission tilt bound)")
 
     # --- summary -------------------------------------------------------------------------
 

@@ -34,7 +34,7 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["Limits", "Watch", "Watchdog", "Verdict", "judge", "outage_recent", "StepWatch", "judge_wait",
-           "FAILSAFE_MODES", "leave_to_autopilot"]
+           "FAILSAFE_MODES", "recovery", "may_command_hold", "LANDING_MODES", "HOLDING_MODES"]
 
 
 @dataclass(frozen=True)
@@ -184,7 +184,28 @@ def judge_wait(w: StepWatch) -> str | None:
     return None
 
 
-def leave_to_autopilot(expect_offboard: bool, offboard: bool, outage: bool) -> bool:
-    """After an abort: a pilot (or ground station) who took the vehicle out of offboard keeps it;
-    after a telemetry outage the companion lands it itself (the autopilot's failsafe would too)."""
-    return expect_offboard and not offboard and not outage
+LANDING_MODES = frozenset({"LAND", "RTL", "PRECLAND", "SMART_RTL"})
+HOLDING_MODES = frozenset({"HOLD", "LOITER", "BRAKE", "POSHOLD"})
+
+
+def recovery(expect_offboard: bool, offboard: bool, outage: bool, mode: str, autopilot: str) -> str:
+    """After an abort or an interrupt, what the companion does with the vehicle:
+
+    - ``"hold_then_land"``: it is ours (we fly it offboard, or it is still in the autopilot's own
+      take-off/hold before offboard): hold, then land;
+    - ``"leave"``: the autopilot left offboard by itself — a pilot or ground station took over, or
+      its own failsafe is landing it (a failsafe is never cancelled: PX4 v1.16 without RC descends
+      in what its heartbeat calls POSCTL);
+    - ``"land"``: it left offboard during a telemetry outage and now merely holds: land it.
+    """
+    if not expect_offboard or offboard:
+        return "hold_then_land"
+    if not outage or mode in LANDING_MODES or (autopilot == "px4" and mode == "POSCTL"):
+        return "leave"
+    return "land" if mode in HOLDING_MODES else "leave"
+
+
+def may_command_hold(expect_offboard: bool, offboard: bool) -> bool:
+    """A hold queued during an outage is sent only while the vehicle still flies our setpoints: once
+    the autopilot left offboard by itself (its failsafe started), a late hold would cancel it."""
+    return not expect_offboard or offboard

@@ -60,6 +60,29 @@ class VehicleLink(abc.ABC):
             self.clock.observe(admitted.t_s, wall)
             self.telemetry_event.set()
 
+    progress: Callable[[str], None] | None = None
+    """where connection progress is reported (the flight's log)"""
+
+    async def _wait_navigation(self, timeout_s: float) -> None:
+        """After the heartbeat: until position and attitude flow. An autopilot whose estimator has
+        no origin yet (ArduCopter: ~40 s after boot) sends attitude but no LOCAL_POSITION_NED: that
+        is waited for with progress, not mistaken for a missing vehicle."""
+        st = self.state
+        end = time.monotonic() + timeout_s
+        said = 0.0
+        while not st.has_navigation:
+            now = time.monotonic()
+            if now > end:
+                have = "attitude but no position (its estimator has no origin yet)" if math.isfinite(st.t_att) \
+                    else "no attitude and no position"
+                raise LinkError(f"the autopilot answers but sends {have} after {timeout_s:g} s "
+                                "(LOCAL_POSITION_NED, ATTITUDE_QUATERNION); a longer --connect-timeout may do")
+            if self.progress is not None and now - said > 5.0:
+                said = now
+                self.progress("vehicle found, waiting for its position (LOCAL_POSITION_NED)..." if
+                              math.isfinite(st.t_att) else "vehicle found, waiting for its telemetry...")
+            await asyncio.sleep(0.05)
+
     async def _refusal_reason(self, before: int) -> str:
         """What the autopilot said after a refusal (texts since index ``before``), the most severe
         first. The reason (STATUSTEXT, or an EVENT on PX4) follows the answer: give it a moment."""
@@ -111,7 +134,9 @@ class VehicleLink(abc.ABC):
         """Switch to the mode that flies attitude setpoints (PX4 OFFBOARD, ArduPilot GUIDED)."""
 
     @abc.abstractmethod
-    async def hold(self) -> None: ...
+    async def hold(self, attempts: int | None = None) -> None:
+        """Switch to the autopilot's position hold (PX4 HOLD, ArduPilot BRAKE); ``attempts``: send
+        the command at most that many times (default: the link's retries)."""
 
     @abc.abstractmethod
     async def land(self) -> None: ...

@@ -24,8 +24,10 @@ class Flavour:
 
 
 PX4 = Flavour("px4", PX4_MODES["OFFBOARD"], PX4_MODES["HOLD"], PX4_MODES["LAND"], ("OFFBOARD",))
-ARDUPILOT = Flavour("ardupilot", (COPTER_MODES["GUIDED"], 0), (COPTER_MODES["LOITER"], 0), (COPTER_MODES["LAND"], 0),
+ARDUPILOT = Flavour("ardupilot", (COPTER_MODES["GUIDED"], 0), (COPTER_MODES["BRAKE"], 0), (COPTER_MODES["LAND"], 0),
                     ("GUIDED", "GUIDED_NOGPS"))
+"""hold is BRAKE: it stops and holds position by itself. LOITER follows the pilot's throttle stick, and
+with no RC (throttle low) it descended at 2.2 m/s after a 2 s telemetry outage and hit the ground"""
 
 
 def flavour_for(autopilot: int) -> Flavour | None:

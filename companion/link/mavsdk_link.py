@@ -123,11 +123,7 @@ class MavsdkLink(VehicleLink):
                 await setter(hz)
             except Exception:
                 self.stats["rate_requests_refused"] += 1
-        end = time.monotonic() + timeout_s
-        while not st.has_navigation:  # run() fills the state; it must already be running
-            if time.monotonic() > end:
-                raise LinkError("no position and attitude telemetry through MAVSDK")
-            await asyncio.sleep(0.05)
+        await self._wait_navigation(timeout_s)  # run() fills the state; it must already be running
 
     # --- telemetry -------------------------------------------------------------------------
 
@@ -265,7 +261,7 @@ class MavsdkLink(VehicleLink):
             reason = await self._refusal_reason(before)
             raise LinkError(f"offboard mode refused (MAV_RESULT {result}){': ' + reason if reason else ''}")
 
-    async def hold(self) -> None:
+    async def hold(self, attempts: int | None = None) -> None:
         await self._do("hold", self.action.hold())
 
     async def land(self) -> None:

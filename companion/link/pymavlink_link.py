@@ -315,12 +315,7 @@ class PymavlinkLink(VehicleLink):
             await self._load_events()
         for msg_id, hz in STREAM_RATES_HZ.items():
             await self.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz, require_ack=False)
-        end = time.monotonic() + timeout_s
-        while not self.state.has_navigation:
-            if time.monotonic() > end:
-                raise LinkError("the autopilot sends no position and attitude (LOCAL_POSITION_NED, "
-                                "ATTITUDE_QUATERNION)")
-            await asyncio.sleep(0.05)
+        await self._wait_navigation(timeout_s)
 
     async def fetch_file(self, path: str, timeout_s: float = 1.0, max_bytes: int = 4 << 20) -> bytes:
         """A file from the autopilot over MAVLink FTP (LinkError if it cannot be read)."""
@@ -372,28 +367,27 @@ class PymavlinkLink(VehicleLink):
             self.event_error = str(exc) or type(exc).__name__
 
     async def _prepare_ardupilot(self) -> None:
-        """ArduPilot sends nothing until asked; thrust must mean throttle (GUID_OPTIONS bit 3)."""
+        """ArduPilot sends only HEARTBEAT and STATUSTEXT until streams are asked for."""
         self._send(self.mav.request_data_stream_encode(self.state.sysid, self.state.compid, 0, 10, 1))
-        options = await self.get_param("GUID_OPTIONS")
-        if options is not None and not int(options) & 8:
-            await self.set_param("GUID_OPTIONS", float(int(options) | 8))
 
     # --- commands --------------------------------------------------------------------------
 
-    async def command_long(self, command: int, *params: float, require_ack: bool = True) -> int:
-        """Send until acknowledged; the MAV_RESULT (LinkError if never acknowledged). Commands queue
-        behind each other (one in flight)."""
+    async def command_long(self, command: int, *params: float, require_ack: bool = True,
+                           attempts: int | None = None) -> int:
+        """Send until acknowledged (at most ``attempts`` times); the MAV_RESULT (LinkError if never
+        acknowledged). Commands queue behind each other (one in flight)."""
         async with self._command_lock:
-            return await self._command_long(command, *params, require_ack=require_ack)
+            return await self._command_long(command, *params, require_ack=require_ack, attempts=attempts)
 
-    async def _command_long(self, command: int, *params: float, require_ack: bool = True) -> int:
+    async def _command_long(self, command: int, *params: float, require_ack: bool = True,
+                            attempts: int | None = None) -> int:
         p = list(params) + [0.0] * (7 - len(params))
         target = (self.state.sysid or 1, self.state.compid or 1)
         loop = asyncio.get_running_loop()
         fut: asyncio.Future[int] = loop.create_future()
         self._acks[command] = fut
         try:
-            for attempt in range(self.command_retries):
+            for attempt in range(attempts or self.command_retries):
                 self._send(self.mav.command_long_encode(*target, command, attempt, *p))
                 try:
                     return await asyncio.wait_for(asyncio.shield(fut), self.command_timeout_s)
@@ -403,7 +397,7 @@ class PymavlinkLink(VehicleLink):
             self._acks.pop(command, None)
         if not require_ack:
             return -1
-        raise LinkError(f"command {command} was not acknowledged after {self.command_retries} tries")
+        raise LinkError(f"command {command} was not acknowledged after {attempts or self.command_retries} tries")
 
     async def _expect(self, command: int, *params: float, what: str) -> None:
         before = self.state.texts_seen
@@ -440,9 +434,12 @@ class PymavlinkLink(VehicleLink):
         assert self.flavour is not None
         await self._set_mode(self.flavour.offboard_mode, "offboard mode")
 
-    async def hold(self) -> None:
+    async def hold(self, attempts: int | None = None) -> None:
         assert self.flavour is not None
-        await self._set_mode(self.flavour.hold_mode, "hold mode")
+        result = await self.command_long(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                                         *self.flavour.hold_mode, attempts=attempts)
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            raise LinkError(f"hold mode refused ({_RESULTS.get(result, f'MAV_RESULT {result}')})")
 
     async def land(self) -> None:
         assert self.flavour is not None

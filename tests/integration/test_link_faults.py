@@ -198,14 +198,16 @@ def test_an_outage_shorter_than_the_offboard_timeout_only_pauses_the_flight(tmp_
 
 def test_an_outage_longer_than_the_offboard_timeout_ends_in_a_landing(tmp_path, sitl, relay, companion, client,
                                                                       record_property):
-    """1.25 s wall = 2.5 s of vehicle time: the vehicle's offboard-loss failsafe holds (after 1 s),
-    the companion, its link back, sees the vehicle out of offboard after an outage, aborts the
-    mission and lands it (exit 1); no fly-away."""
+    """1.25 s wall = 2.5 s of vehicle time: the vehicle's offboard-loss failsafe (after 1 s) descends
+    and lands it, as PX4 v1.16 does without RC; the companion, its link back, sees the vehicle out of
+    offboard after an outage, aborts the mission (exit 1) and leaves the landing to the autopilot:
+    nothing it had queued (the hold it commanded in the outage) may cancel the failsafe."""
     code, out, report, relay_report, pos, texts = _flight_with_outage(tmp_path, sitl, relay, companion, client, 1.25,
                                                                           record_property)
     assert code == 1, out
-    assert "left offboard (mode HOLD) after a" in out and "telemetry outage" in out
-    assert "commanding hold" in out and "holding, then landing" in out
+    assert "left offboard (mode POSCTL) after a" in out and "telemetry outage" in out
+    assert "has control: the companion stops here" in out and "holding, then landing" not in out
+    assert not any("Failsafe cleared by mode change" in t for t in texts), texts
     assert any("Failsafe: offboard lost" in t for t in texts), texts
     assert _no_fly_away(pos) < 0.5
     assert not report["armed"]
@@ -215,12 +217,12 @@ def test_an_outage_longer_than_the_offboard_timeout_ends_in_a_landing(tmp_path, 
 def test_an_outage_longer_than_link_lost_leaves_the_vehicle_to_its_failsafe(tmp_path, sitl, relay, companion,
                                                                            client, record_property):
     """4 s wall = 8 s of vehicle time: the companion gives up after link_lost_s = 3 s (exit 3); the
-    vehicle holds after 1 s and lands after COM_FAIL_ACT_T = 5 s more, by itself."""
+    vehicle leaves offboard after 1 s and descends and lands by itself."""
     code, out, report, relay_report, pos, texts = _flight_with_outage(tmp_path, sitl, relay, companion, client, 4.0,
                                                                           record_property)
     assert code == 3, out
     assert "vehicle link lost" in out
-    assert any("Failsafe: offboard lost" in t for t in texts) and any("Failsafe: landing" in t for t in texts)
+    assert any("Failsafe: offboard lost, descending" in t for t in texts), texts
     assert _no_fly_away(pos) < 0.5
     assert not report["armed"]
     assert pos[-1, 3] > -0.1
