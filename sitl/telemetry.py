@@ -126,7 +126,8 @@ class Telemetry:
         if ap.failsafe:
             status = mavlink.MAV_STATE_CRITICAL
         return self.mav.heartbeat_encode(
-            mavlink.MAV_TYPE_QUADROTOR, self.autopilot_type, base, custom_mode(ap.reported_mode, ap.params.flavour), status
+            mavlink.MAV_TYPE_QUADROTOR, self.autopilot_type, base, custom_mode(ap.reported_mode, ap.params.flavour),
+            status
         )
 
     def armable(self) -> bool:
