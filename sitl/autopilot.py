@@ -31,7 +31,6 @@ from typing import NamedTuple
 from companion.control import quaternion as quat
 from companion.mavlink import modes
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
-from companion.control.reference import attitude_from_force, limit_force
 from companion.control.trajectory import ReferenceFilter
 from companion.control.vector import ZERO3, Vec3
 
@@ -144,8 +143,11 @@ class AutopilotParams:
     """COM_DISARM_LAND"""
     max_rate_setpoint_rad_s: float = math.radians(2000.0)
     """body-rate setpoints beyond this are rejected as out of range"""
-    strict_px4: bool = False
-    """PX4's either/or rule: with an attitude, only the yaw rate is used as feed-forward"""
+    paper_inner_loop: bool = False
+    """the paper's inner loop: an attitude *and* its body rates, both used (the ``paper`` flavour);
+    False: PX4's rule — with an attitude only the yaw rate is a feed-forward, and roll and pitch
+    rates sent beside it are what PX4 v1.16 publishes as a second, conflicting rate setpoint
+    (counted, warned once, not flown)"""
     hold_controller: str = "ism_do"
     """position controller of the firmware's own hold, take-off and landing"""
     flavour: str = "px4"
@@ -508,7 +510,11 @@ class Autopilot:
         if use_att:
             n = math.sqrt(sum(c * c for c in q))
             q_d = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
-            if self.params.strict_px4:
+            if not self.params.paper_inner_loop and not self.ardupilot:
+                if use_rates[0] and use_rates[1]:
+                    self._reject("attitude and body rates together")
+                    if self.rejected["attitude and body rates together"] == 1:
+                        self._say(Severity.WARNING, "Attitude and body rates both set: rates not flown")
                 rates = (0.0, 0.0, rates[2])
         else:
             q_d = prev.q_d if prev else self.vehicle.estimator.q
@@ -638,15 +644,20 @@ class Autopilot:
                 self._guided_flying = True
                 if not self.offboard_uses_attitude:
                     sp = AttitudeSetpoint(self._rate_reference(sp.omega_d_rad_s), sp.omega_d_rad_s, sp.thrust_n)
+                elif any(sp.omega_d_rad_s):
+                    # ArduCopter keeps turning the last target by the body rates sent with it
+                    age = self.t - self.last_setpoint_time
+                    sp = AttitudeSetpoint(quat.integrate(sp.q_d, sp.omega_d_rad_s, age), sp.omega_d_rad_s,
+                                          sp.thrust_n)
                 return self._guided_target(sp)
-            if self._guided_flying:  # GUID_TIMEOUT: stop flying targets, hold where it is
+            if self._guided_flying:  # GUID_TIMEOUT: level out and keep the altitude; position is not held
                 self._guided_flying = False
-                self._say(Severity.WARNING, "Guided: attitude target timed out, holding")
-                self.target = self.vehicle.tracked.pos_ned_m
-                self._restart_reference()
+                self._say(Severity.WARNING, "Guided: attitude target timed out, levelling")
             if self.landed:
                 self._reset_controllers()
                 return self._idle_setpoint()
+            if sp is not None:
+                return self._level_keeping_altitude()
         if mode == Mode.OFFBOARD:
             assert self.offboard_position is not None
             self.target, self.target_yaw = self.offboard_position
@@ -693,9 +704,18 @@ class Autopilot:
         yaw = float(quat.to_euler(q)[2])
         return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3, min(max(thrust, 0.3 * m.weight_n), m.thrust_max_n))
 
+    def _level_keeping_altitude(self) -> AttitudeSetpoint:
+        """GUIDED after GUID_TIMEOUT: level at the current yaw, climb rate zero, drifting freely."""
+        m = self.vehicle.scenario.vehicle
+        v_up = -self.vehicle.tracked.vel_ned_m_s[2]
+        thrust_n = min(max(m.mass_kg * (m.gravity_m_s2 - 2.0 * v_up), 0.0), m.thrust_max_n)
+        yaw = float(quat.to_euler(self.vehicle.estimator.q)[2])
+        return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3, thrust_n)
+
     def _guided_target(self, sp: AttitudeSetpoint) -> AttitudeSetpoint:
-        """ArduPilot's handling of an attitude target: tilt clipped to ANGLE_MAX; thrust is
-        throttle with GUID_OPTIONS bit 3, else a climb rate held by a vertical-speed loop."""
+        """ArduPilot's handling of an attitude target: thrust is throttle with GUID_OPTIONS bit 3,
+        else a climb rate held by a vertical-speed loop. The tilt is *not* limited to ANGLE_MAX
+        (ArduCopter 4.7/4.8 flew 37.6 deg with 30 deg set: tests/autopilots)."""
         q_d = sp.q_d
         thrust_n = sp.thrust_n
         if not self.params.guided_thrust_is_throttle:
@@ -704,11 +724,6 @@ class Autopilot:
             cos_tilt = max(math.cos(float(quat.tilt_angle(q_d))), 0.3)
             thrust_n = m.mass_kg * (m.gravity_m_s2 + 2.0 * (self.guided_climb_rate_m_s - v_up)) / cos_tilt
             thrust_n = min(max(thrust_n, 0.0), m.thrust_max_n)
-        if quat.tilt_angle(q_d) > math.radians(self.params.angle_max_deg):
-            f = quat.rotate(q_d, (0.0, 0.0, -1.0))
-            f = limit_force(f, 1e-3, math.radians(self.params.angle_max_deg))
-            yaw = float(quat.to_euler(q_d)[2])
-            q_d, _ = attitude_from_force(f, yaw)
         return AttitudeSetpoint(q_d, sp.omega_d_rad_s, thrust_n)
 
     def _rate_reference(self, omega_d: Vec3) -> tuple:

@@ -65,7 +65,7 @@ def build(args: argparse.Namespace) -> MavlinkServer:
     # a live vehicle starts on the ground at the origin, whatever the scenario's setpoint says
     vehicle = SimVehicle(scenario, args.attitude, args.seed, (0.0, 0.0, scenario.airframe.ground_z_m), 0.0,
                          hovering=False)
-    ap = Autopilot(vehicle, AutopilotParams(strict_px4=args.flavour == "px4-strict",
+    ap = Autopilot(vehicle, AutopilotParams(paper_inner_loop=args.flavour == "paper",
                                             flavour="ardupilot" if args.flavour == "ardupilot" else "px4"))
     cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
                        origin=args.origin, signing_key=signing_key(args, "sitl"),
@@ -107,8 +107,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--scenario", help="scenario file or bundled name: vehicle, wind, forces, gains")
     ap.add_argument("--attitude", choices=("pd", "pd_do", "ism_do"), default="ism_do",
                     help="onboard attitude controller")
-    ap.add_argument("--flavour", choices=("px4", "px4-strict", "ardupilot"), default="px4",
-                    help="px4-strict: with an attitude, use only the yaw rate of SET_ATTITUDE_TARGET; "
+    ap.add_argument("--flavour", choices=("px4", "paper", "ardupilot"), default="px4",
+                    help="px4: PX4 v1.16's rules (with an attitude only the yaw rate of SET_ATTITUDE_TARGET is a "
+                         "feed-forward; offboard loss descends; ...); paper: a PX4-like vehicle whose inner loop "
+                         "flies the attitude and its body rates together, as the paper's does "
+                         "(fly it with companion --output attitude_rates); "
                          "ardupilot: behave like ArduCopter (GUIDED, GUID_OPTIONS, ANGLE_MAX, ...)")
     ap.add_argument("--param", type=parse_param, action="append", default=[], metavar="NAME=VALUE",
                     help="set a parameter at start, e.g. SIM_WIND_N=3 SIM_TURB_SIGMA=0.6 SIM_FORCE_X=6 "

@@ -257,3 +257,13 @@ class CompanionProcess:
         dirs = sorted(p for p in self.out_dir.iterdir() if p.is_dir())
         assert dirs, "no flight folder written"
         return dirs[-1]
+
+
+LOCKSTEP = ("--lockstep",)
+"""the world advances 10 ms per setpoint (sitl --lockstep): flights whose subject is control measure
+the same on a busy host, only slower"""
+LOCKSTEP_SPEEDUP = 8.0
+PAPER = ("--flavour", "paper")
+"""the bundled vehicle with the paper's inner loop (attitude and body rates flown together)"""
+PAPER_OUTPUT = ("--output", "attitude_rates")
+"""the companion's setpoints for that inner loop: attitude, body rates and thrust"""

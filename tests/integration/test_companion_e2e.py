@@ -25,10 +25,9 @@ WAIT = ("--wait-for-setpoints", "0.05")
 """flights whose subject is the real-time behaviour (failsafes, Ctrl-C, a GCS taking over): the vehicle
 waits (its clock stopped) for a companion this busy host stalls, rather than flying 4x as long
 without it (sitl --help)"""
-LOCKSTEP = ("--lockstep",)
-LOCKSTEP_SPEEDUP = 8.0
-"""flights whose subject is control: the world advances 10 ms per setpoint (sitl --lockstep), at most 8x
-real time; a busy host makes them slower, never different"""
+# flights whose subject is control: lockstep (a busy host makes them slower, never different), the
+# paper's inner loop and the setpoints it takes (tests/helpers/processes.py)
+from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT  # noqa: E402
 
 
 def segments(flight) -> dict:
@@ -47,8 +46,8 @@ def test_waypoint_mission_tracks_the_reference(sitl, companion):
     ~20 m/s^3 * 0.1 s = 2 m/s^2 of unmodelled acceleration for ~0.2 s, i.e. ~4 cm of error, which
     the position loop then removes. Bounds: RMS < 5 cm and peak < 15 cm over the square; every
     waypoint reached within its 15 cm tolerance (else the mission would time out)."""
-    s = sitl(*LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
-    c = companion("missions/waypoints.toml", s.url)
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
+    c = companion("missions/waypoints.toml", s.url, *PAPER_OUTPUT)
     code, out = c.finish()
     assert code == 0, out
     seg = segments(c.flight_dir())
@@ -85,8 +84,8 @@ def test_hover45_holds_position_at_45_degrees_and_does_not_overshoot_on_release(
     stall is longer in vehicle time, so this flight runs at 2x (CI once saw +0.23 m at 4x), and
     the allowance a tau^2, with tau the longest setpoint gap in the companion's own record, is
     added to the bound (1 mm without a stall; a 60 ms wall stall at 2x makes tau = 0.12 s)."""
-    s = sitl(*LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
-    c = companion("missions/hover45.toml", s.url)
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
+    c = companion("missions/hover45.toml", s.url, *PAPER_OUTPUT)
     code, out = c.finish()
     assert code == 0, out
     flight = c.flight_dir()
@@ -181,8 +180,8 @@ def test_a_wrong_thrust_scale_is_estimated_online(sitl, companion):
     """Told 15 N instead of the vehicle's 18.56 N at full throttle, the companion sends 24% too
     little normalised thrust; the force observer's vertical estimate exposes the ratio and the
     online estimate recovers the true scale to within 3% during the flight."""
-    s = sitl(*LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
-    c = companion("missions/waypoints.toml", s.url, "--thrust-max", "15")
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
+    c = companion("missions/waypoints.toml", s.url, *PAPER_OUTPUT, "--thrust-max", "15")
     code, out = c.finish()
     assert code == 0, out
     summary = segments(c.flight_dir())["_summary"]
@@ -205,8 +204,8 @@ def test_a_bad_mission_file_is_reported_before_anything_arms(tmp_path, sitl, com
 def test_the_mavsdk_backend_flies_the_same_mission(sitl, companion):
     """MAVSDK 4 arms, takes off, lands and reports telemetry; MavlinkDirect carries the setpoints
     and the switch to offboard. Same bounds as the pymavlink flight of hover45."""
-    s = sitl(*LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
-    c = companion("missions/hover45.toml", s.url, "--backend", "mavsdk")
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
+    c = companion("missions/hover45.toml", s.url, *PAPER_OUTPUT, "--backend", "mavsdk")
     code, out = c.finish()
     assert code == 0, out
     seg = segments(c.flight_dir())
@@ -216,20 +215,23 @@ def test_the_mavsdk_backend_flies_the_same_mission(sitl, companion):
     assert not s.stop()["armed"]
 
 
-def test_ardupilot_flavour_guided_throttle_and_lean_angle(sitl, companion, client):
-    """Against a vehicle that behaves like ArduCopter (autopilot 3, GUIDED, GUID_OPTIONS, ANGLE_MAX
-    30 deg, only heartbeats until streams are asked for): the companion asks for streams, makes
-    thrust mean throttle, raises ANGLE_MAX to its tilt bound and flies the 45 deg hover."""
+def test_ardupilot_flavour_guided_throttle_and_parameters_put_back(sitl, companion, client):
+    """Against a vehicle that behaves like ArduCopter (autopilot 3, GUIDED, GUID_OPTIONS, only
+    heartbeats until streams are asked for): the companion asks for streams, makes thrust mean
+    throttle and GUID_TIMEOUT short for the flight, flies the 45 deg hover (GUIDED does not limit
+    attitude targets to ANGLE_MAX, so ANGLE_MAX is left alone), and puts both parameters back."""
     s = sitl("--flavour", "ardupilot", *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
+    gcs = client(s.url, source_system=200)
+    before = {name: gcs.param(name) for name in ("GUID_OPTIONS", "GUID_TIMEOUT", "ANGLE_MAX")}
     c = companion("missions/hover45.toml", s.url)
     code, out = c.finish()
     assert code == 0, out
-    assert "ANGLE_MAX raised from 30 to 60 deg" in out and "MOT_THST_HOVER" in out
+    assert "GUID_OPTIONS 0 -> 8" in out and "GUID_TIMEOUT 3 -> 0.5" in out and "MOT_THST_HOVER" in out
+    assert "GUID_OPTIONS put back to 0" in out and "ANGLE_MAX" not in out
     seg = segments(c.flight_dir())
-    assert seg["_summary"]["autopilot"] == "ardupilot"
+    assert seg["_summary"]["autopilot"] == "ardupilot" and seg["_summary"]["type_mask"] == 7
     assert abs(seg["45 deg hover"]["force_estimate_n"][0] - 6.0) < 0.3
-    gcs = client(s.url, source_system=200)
-    assert gcs.param("GUID_OPTIONS") == 8.0 and gcs.param("ANGLE_MAX") == 6000.0
+    assert {name: gcs.param(name) for name in before} == before
     assert not s.stop()["armed"]
 
 
@@ -261,8 +263,8 @@ def test_a_stalled_companion_finds_the_waiting_vehicle_where_it_left_it(sitl, co
     clean flight's bounds (RMS < 5 cm, peak < 15 cm: 0.05 s unattended adds at most
     1/2 * 4 m/s^2 * 0.05^2 = 5 mm). The vehicle reports one wait of about the stall's length, and
     never left offboard."""
-    s = sitl(*LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
-    c = companion("missions/waypoints.toml", s.url)
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
+    c = companion("missions/waypoints.toml", s.url, *PAPER_OUTPUT)
     c.wait_for("step square")
     time.sleep(1.0)  # mid-square
     c.proc.send_signal(signal.SIGSTOP)
@@ -289,8 +291,8 @@ def test_the_square_keeps_its_clean_bounds_on_a_host_that_stalls_both_processes(
     clock line alone) the same schedule gave RMS 11-19 cm and a 0.5-1.0 m peak."""
     from helpers.processes import Staller
 
-    s = sitl(*LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
-    c = companion("missions/waypoints.toml", s.url)
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
+    c = companion("missions/waypoints.toml", s.url, *PAPER_OUTPUT)
     c.wait_for("step square")
     staller = Staller([s.proc.pid, c.proc.pid], seed=7)
     c.wait_for("step settle")

@@ -23,11 +23,9 @@ import time
 import pytest
 
 from helpers.mitm import Mitm
+from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT
 
 pytestmark = pytest.mark.integration
-
-WAIT = ("--wait-for-setpoints", "0.05")
-
 
 def _attacks(mitm: Mitm) -> dict[str, int]:
     """Ten frames of each class, built from the newest genuine messages."""
@@ -52,11 +50,11 @@ def _attacks(mitm: Mitm) -> dict[str, int]:
 
 
 def test_no_timestamp_moves_or_stalls_the_companion_clock(sitl, companion):
-    s = sitl("--lockstep", speedup=8.0)
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
     host, port = s.url.split(":")
     mitm = Mitm((host, int(port)))
     try:
-        c = companion("missions/hold.toml", mitm.url)
+        c = companion("missions/hold.toml", mitm.url, *PAPER_OUTPUT)
         c.wait_for("step hold")
         time.sleep(1.0)  # 4 vehicle seconds into the hold
         sent = _attacks(mitm)

@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
+from helpers.processes import PAPER, PAPER_OUTPUT
+
 from companion.plots import load_timeseries
 
 from .test_companion_e2e import segments, window
@@ -130,9 +132,9 @@ def test_waypoints_and_hover45_under_loss_and_delay(sitl, relay, companion, reco
     stream that long: 30 ms of jitter, and 10 losses in a row at p = 1e-10)."""
     results = {}
     for name, seed in (("waypoints", "1"), ("hover45", "2")):
-        s = sitl("--wait-for-setpoints", "0.1", speedup=1.0)
+        s = sitl(*PAPER, "--wait-for-setpoints", "0.1", speedup=1.0)
         r = relay(s.url, *IMPAIRED, "--seed", seed)
-        c = companion(f"missions/{name}.toml", r.url)
+        c = companion(f"missions/{name}.toml", r.url, *PAPER_OUTPUT)
         code, out = c.finish(timeout=180)
         assert code == 0, out
         report = r.stop()

@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT
+
 from .test_companion_e2e import SPEEDUP, segments
 from .test_link_faults import Observer
 
@@ -45,9 +47,9 @@ def test_a_30_percent_heavier_vehicle_and_a_weak_motor_are_ridden_out(sitl, comp
       4 deg for ~0.1 s, i.e. about 2.5 cm of drift: 0.15 m.
     Afterwards the loop is back on its reference: RMS over each hold's last 6 s under the clean
     hold bound of 3 cm (test_companion_e2e)."""
-    s = sitl("--wait-for-setpoints", "0.05", speedup=SPEEDUP)
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
     c = companion(mission(tmp_path, ("heavier", "SIM_MASS_FAC", 1.3, 12.0), ("weak motor", "SIM_MOT1_EFF", 0.7, 12.0)),
-                  s.url)
+                  s.url, *PAPER_OUTPUT)
     code, out = c.finish()
     assert code == 0, out
     seg = segments(c.flight_dir())

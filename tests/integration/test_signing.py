@@ -17,6 +17,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
 from companion.mavlink.signing import enable_signing, write_key_file
+from helpers.processes import LOCKSTEP, PAPER, PAPER_OUTPUT
 
 from .test_companion_e2e import SPEEDUP, segments
 from .test_link_faults import Observer
@@ -104,10 +105,10 @@ def test_signed_flight_completes_while_unsigned_forged_replayed_and_foreign_send
     frame in flight at shutdown) — and each reason is reported once, not per frame."""
     key_file = tmp_path / "mavlink.key"
     key = write_key_file(key_file)
-    s = sitl("--signing-key-file", str(key_file), "--wait-for-setpoints", "0.05", speedup=ATTACK_SPEEDUP)
+    s = sitl("--signing-key-file", str(key_file), *PAPER, *LOCKSTEP, speedup=ATTACK_SPEEDUP)
     assert any("signing on" in line for line in s.banner)
     observer = Observer(s.url, signing_key=key)
-    c = companion("missions/waypoints.toml", s.url, env={"MAVLINK_SIGNING_KEY": key.hex()})
+    c = companion("missions/waypoints.toml", s.url, *PAPER_OUTPUT, env={"MAVLINK_SIGNING_KEY": key.hex()})
     c.wait_for("signing on")
     attacker = Attacker(s.url, key, tmp_path / "flights")
     code, out = c.finish()

@@ -99,11 +99,14 @@ def test_rates_only_setpoint_turns_the_vehicle_at_the_commanded_rate():
     assert abs(turned - 1.0) < 0.05
 
 
-def test_strict_px4_flavour_ignores_roll_and_pitch_rates_with_an_attitude():
-    ap = make(strict_px4=True)
+def test_px4_flavour_flies_only_the_yaw_rate_beside_an_attitude_and_the_paper_flavour_all_rates():
+    ap = make()
     ap.attitude_target(255, 0, quat.IDENTITY, (0.5, 0.5, 0.2), 0.3)
     assert ap.offboard_attitude.omega_d_rad_s == (0.0, 0.0, 0.2)
-    ap2 = make()
+    assert ap.rejected["attitude and body rates together"] == 1  # what PX4 publishes as a second setpoint
+    ap.attitude_target(255, 3, quat.IDENTITY, (0.5, 0.5, 0.2), 0.3)  # roll, pitch ignored: deliberate
+    assert ap.rejected["attitude and body rates together"] == 1
+    ap2 = make(paper_inner_loop=True)
     ap2.attitude_target(255, 0, quat.IDENTITY, (0.5, 0.5, 0.2), 0.3)
     assert ap2.offboard_attitude.omega_d_rad_s == (0.5, 0.5, 0.2)
 
@@ -170,13 +173,27 @@ def test_ardupilot_thrust_is_a_climb_rate_unless_guid_options_makes_it_throttle(
         assert (dz < -1.0) if climbs else abs(dz) < 0.15, (throttle, dz)
 
 
-def test_ardupilot_clips_attitude_targets_to_angle_max_and_holds_after_guid_timeout():
+def test_ardupilot_flies_targets_past_angle_max_and_levels_after_guid_timeout():
+    """ArduCopter (seen on its SITL): GUIDED does not limit an attitude target to ANGLE_MAX; once the
+    targets stop it flies the last one for GUID_TIMEOUT, then levels out at zero climb rate without
+    holding position (it drifts on)."""
     ap = guided_airborne(guided_thrust_is_throttle=True, angle_max_deg=30.0, guided_timeout_s=1.0)
     hover = 0.63 * 9.81 / ap.vehicle.scenario.vehicle.thrust_max_n
-    stream(ap, 0.6, q=quat.from_euler(math.radians(50.0), 0.0, 0.0), thrust=hover / math.cos(math.radians(30)))
-    assert math.degrees(quat.tilt_angle(ap.setpoint.q_d)) == pytest.approx(30.0, abs=0.1)
-    run(ap, 1.2)  # targets stop: after GUID_TIMEOUT it holds position, level, still in GUIDED
+    stream(ap, 0.6, q=quat.from_euler(math.radians(40.0), 0.0, 0.0), thrust=hover / math.cos(math.radians(40)))
+    assert math.degrees(quat.tilt_angle(ap.setpoint.q_d)) == pytest.approx(40.0, abs=0.1)
+    run(ap, 1.2)  # targets stop: after GUID_TIMEOUT it levels, still in GUIDED
+    levelled = ap.vehicle.state.pos_ned_m
     run(ap, 3.0)
     assert ap.mode == Mode.GUIDED and ap.armed
     assert math.degrees(quat.tilt_angle(ap.vehicle.state.q)) < 3.0
-    assert math.hypot(*ap.vehicle.state.vel_ned_m_s) < 0.3
+    drift = math.dist(levelled[:2], ap.vehicle.state.pos_ned_m[:2])
+    assert drift > 1.0 and math.hypot(*ap.vehicle.state.vel_ned_m_s[:2]) > 0.2  # not holding position
+    assert abs(ap.vehicle.state.vel_ned_m_s[2]) < 0.2  # climb rate zero
+
+
+def test_ardupilot_keeps_turning_the_last_target_by_its_rates_until_guid_timeout():
+    ap = guided_airborne(guided_thrust_is_throttle=True, guided_timeout_s=1.0)
+    hover = 0.63 * 9.81 / ap.vehicle.scenario.vehicle.thrust_max_n
+    stream(ap, 0.2, q=quat.IDENTITY, thrust=hover, rates=(0.0, 0.3, 0.0))  # 0.3 rad/s of pitch sent along
+    run(ap, 0.8)  # silent, still within GUID_TIMEOUT: the target went on pitching
+    assert math.degrees(quat.tilt_angle(ap.setpoint.q_d)) > 10.0
