@@ -20,20 +20,20 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from companion.demo import start_vehicle  # noqa: E402
+from companion.vehicle_process import VehicleProcess  # noqa: E402
 from companion.plots import load_timeseries  # noqa: E402
 
 
 def fly(rate_hz: float, backend: str) -> dict:
-    vehicle, port = start_vehicle(1.0)
+    vehicle = VehicleProcess("--flavour", "paper", speedup=1.0)
     out = Path(tempfile.mkdtemp())
     try:
         r = subprocess.run([sys.executable, "-m", "companion", "fly", str(ROOT / "missions/hold.toml"),
-                            "--connect", f"udp://127.0.0.1:{port}", "--rate", str(rate_hz), "--backend", backend,
+                            "--connect", f"udp://{vehicle.url}", "--rate", str(rate_hz), "--backend", backend,
+                            "--output", "attitude_rates",
                             "--out", str(out), "--no-plots", "--quiet"], capture_output=True, text=True, timeout=180)
     finally:
-        vehicle.terminate()
-        vehicle.wait()
+        vehicle.stop()
     if r.returncode != 0:
         raise RuntimeError(r.stdout + r.stderr)
     flight = next(p for p in out.iterdir() if p.is_dir())

@@ -33,7 +33,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from companion.demo import start_vehicle  # noqa: E402
+from companion.vehicle_process import VehicleProcess  # noqa: E402
 from companion.flight.health import rss_mb  # noqa: E402
 
 CYCLE_S = 75.0
@@ -82,10 +82,11 @@ def main() -> int:
     work = Path(tempfile.mkdtemp(prefix="soak-"))
     mission = work / "soak.toml"
     mission.write_text(soak_mission(args.hours))
-    vehicle, port = start_vehicle(args.speedup, "--param", "SIM_WIND_N=3", "--param", "SIM_TURB_SIGMA=0.6",
-                                  "--wait-for-setpoints", str(args.wait_for_setpoints))
+    vehicle = VehicleProcess("--flavour", "paper", "--param", "SIM_WIND_N=3", "--param", "SIM_TURB_SIGMA=0.6",
+                             "--wait-for-setpoints", str(args.wait_for_setpoints), speedup=args.speedup)
     comp = subprocess.Popen([sys.executable, "-m", "companion", "fly", str(mission), "--connect",
-                             f"udp://127.0.0.1:{port}", "--out", str(work), "--no-plots", "--quiet"],
+                             f"udp://{vehicle.url}", "--out", str(work), "--no-plots", "--quiet", "--output",
+                             "attitude_rates"],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     samples: list[tuple[float, float, float, float, float]] = []  # wall, rss companion, rss vehicle, cpu c, cpu v
     wall0 = time.monotonic()
@@ -98,14 +99,12 @@ def main() -> int:
     finally:
         if comp.poll() is None:
             comp.kill()
-        vehicle.terminate()
-        report_text = vehicle.communicate(timeout=30)[0]
+        report = vehicle.stop(timeout_s=30)
     wall = time.monotonic() - wall0
     if comp.returncode != 0:
         print(out)
-        print(report_text)
+        print(json.dumps(report))
         return 1
-    report = json.loads(next(ln for ln in report_text.splitlines() if ln.startswith("sitl: stopped "))[14:])
     flight = next(p for p in work.iterdir() if p.is_dir())
     with open(flight / "health.csv") as f:
         rows = list(csv.DictReader(f))

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Sequence
 
 from companion.config import ConfigError
+from companion.link.url import parse_endpoint
 from companion.mavlink.signing import SigningError, fingerprint, write_key_file
 from companion.mavlink.signing_options import add_signing_options, signing_key
 
@@ -37,6 +38,11 @@ def _fly(args: argparse.Namespace) -> int:
     try:
         mission = load_mission(args.mission)
     except ConfigError as exc:
+        print(f"companion: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        parse_endpoint(args.connect)
+    except ValueError as exc:
         print(f"companion: error: {exc}", file=sys.stderr)
         return 2
     try:
@@ -106,7 +112,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     fly = sub.add_parser("fly", help="fly a mission file")
     fly.add_argument("mission", help="mission file (.toml, or a QGroundControl .plan)")
     fly.add_argument("--connect", default="udp://127.0.0.1:14540",
-                     help="udp://HOST:PORT (vehicle listens) or udpin://HOST:PORT (vehicle sends first)")
+                     help="udp://HOST:PORT (the vehicle listens: the bundled one), udpin://HOST:PORT (the vehicle "
+                          "sends first: PX4 SITL, 14540), tcp://HOST:PORT (ArduPilot SITL: 5760), "
+                          "serial:///dev/DEVICE:BAUD (a flight controller's TELEM port)")
     fly.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc", "autopilot"),
                      help="position controller; autopilot: the autopilot's own position control flies the same "
                           "reference (SET_POSITION_TARGET_LOCAL_NED), for comparison")
@@ -132,7 +140,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     check.set_defaults(func=_check)
     demo = sub.add_parser("demo", help="fly hover45 and waypoints against the bundled simulated vehicle")
     demo.add_argument("--out", default="flights")
-    demo.add_argument("--speedup", type=float, default=4.0)
+    demo.add_argument("--speedup", type=float, default=8.0, help="upper bound on the simulated vehicle's speed-up "
+                      "(in lockstep it flies as fast as the companion answers, up to this)")
     demo.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc"), default="ism_do")
     demo.set_defaults(func=_demo)
     keygen = sub.add_parser("keygen", help="write a new random MAVLink 2 signing key to a file (mode 600)")

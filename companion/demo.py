@@ -1,67 +1,52 @@
 """``companion demo``: the README's main job, headless and self-contained.
 
-Starts the bundled simulated vehicle (``python -m sitl``) on a free local port, sped up, flies
-``missions/hover45.toml`` (the 45 degree hover against the suspended weight, attached then
-released) and ``missions/waypoints.toml`` with the companion over UDP, prints each flight's
-summary and writes its record and plots under ``flights/``.
+Starts the bundled simulated vehicle (``python -m sitl``, companion/vehicle_process.py) with the
+paper's inner loop and in lockstep (the world advances as the companion's setpoints arrive, so a
+busy machine makes the demo slower, never different), flies ``missions/hover45.toml`` (the 45
+degree hover against the suspended weight, attached then released) and ``missions/waypoints.toml``
+with the companion over UDP, prints each flight's summary and writes its record and plots under
+``flights/``.
+
+Ctrl-C reaches only the companion (the vehicle runs in a session of its own): it holds, lands and
+disarms the vehicle, and the demo ends there instead of flying the next mission.
 """
 
 from __future__ import annotations
 
 import asyncio
-import socket
-import subprocess
-import sys
 import time
 from pathlib import Path
 
-__all__ = ["run_demo", "start_vehicle", "MISSIONS_DIR"]
+from .vehicle_process import VehicleProcess
+
+__all__ = ["run_demo", "MISSIONS_DIR", "DEMO_MISSIONS"]
 
 MISSIONS_DIR = Path(__file__).resolve().parents[1] / "missions"
+DEMO_MISSIONS = ("hover45", "waypoints")
+INTERRUPTED = 130
 
 
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def start_vehicle(speedup: float, *extra: str) -> tuple[subprocess.Popen[str], int]:
-    """The bundled vehicle in its own process; returns it and its UDP port once it listens."""
-    port = _free_port()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "sitl", "--listen", f"127.0.0.1:{port}", "--speedup", str(speedup), *extra],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-    )
-    lines = []
-    while proc.stdout and len(lines) < 5:  # "listening" comes last (after the signing notice, if any)
-        lines.append(proc.stdout.readline())
-        if "listening" in lines[-1] or not lines[-1]:
-            break
-    if not lines or "listening" not in lines[-1]:
-        proc.kill()
-        raise RuntimeError(f"the simulated vehicle did not start: {''.join(lines)}")
-    return proc, port
-
-
-def run_demo(out_dir: Path = Path("flights"), speedup: float = 4.0, controller: str = "ism_do") -> int:
+def run_demo(out_dir: Path = Path("flights"), speedup: float = 8.0, controller: str = "ism_do") -> int:
     from .flight import Flight, FlightOptions, run_flight
     from .mission import load_mission
 
     status = 0
-    for name in ("hover45", "waypoints"):
+    for name in DEMO_MISSIONS:
         mission = load_mission(MISSIONS_DIR / f"{name}.toml")
-        # the vehicle waits for this process if the machine stalls it (sitl --wait-for-setpoints):
-        # sped up 4x, a 0.3 s stall would otherwise be 1.2 s without setpoints and a failsafe
-        proc, port = start_vehicle(speedup, "--wait-for-setpoints", "0.05")
+        vehicle = VehicleProcess("--flavour", "paper", "--lockstep", speedup=speedup)
         try:
-            print(f"\n=== {name}: simulated vehicle on udp://127.0.0.1:{port}, {speedup:g}x ===", flush=True)
+            print(f"\n=== {name}: simulated vehicle on udp://{vehicle.url}, lockstep, up to {speedup:g}x ===",
+                  flush=True)
             t0 = time.monotonic()
-            opts = FlightOptions(connect=f"udp://127.0.0.1:{port}", controller=controller, out_dir=out_dir)
+            opts = FlightOptions(connect=f"udp://{vehicle.url}", controller=controller, out_dir=out_dir,
+                                 output="attitude_rates")
             code = asyncio.run(run_flight(Flight(mission, opts), plots=True))
-            print(f"({time.monotonic() - t0:.0f} s wall)")
-            status = status or code
+            print(f"({time.monotonic() - t0:.0f} s wall)", flush=True)
         finally:
-            proc.terminate()
-            proc.wait(timeout=10)
+            vehicle.stop()
+        status = status or code
+        if code == INTERRUPTED:
+            print("companion: demo interrupted: the vehicle was landed; the remaining flights are not flown",
+                  flush=True)
+            return INTERRUPTED
     return status

@@ -39,7 +39,7 @@ def parse_address(text: str) -> tuple[str, int]:
     """``HOST:PORT`` (or ``udp://HOST:PORT``) to a tuple, with a clear error."""
     raw = text.split("://", 1)[-1]
     host, sep, port = raw.rpartition(":")
-    if not sep or not port.isdigit() or not 0 < int(port) < 65536:
+    if not sep or not port.isdigit() or not 0 <= int(port) < 65536:  # 0: any free port (the banner says which)
         raise argparse.ArgumentTypeError(f"expected HOST:PORT, got {text!r}")
     return host or "127.0.0.1", int(port)
 

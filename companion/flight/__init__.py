@@ -30,6 +30,9 @@ async def run_flight(flight: Flight, plots: bool) -> int:
     loop.add_signal_handler(signal.SIGINT, flight.interrupt)
     loop.add_signal_handler(signal.SIGTERM, flight.interrupt)
     result = await flight.run()
+    if not (flight.folder / "summary.md").exists():  # it never reached a vehicle
+        print(f"companion: {result.result}: {result.message}", file=sys.stderr, flush=True)
+        return result.exit_code
     print((flight.folder / "summary.md").read_text())
     if plots:
         from companion.plots import draw_flight

@@ -20,6 +20,7 @@ import contextlib
 import dataclasses
 import datetime
 import math
+import shutil
 import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
@@ -178,6 +179,8 @@ class Flight:
         finally:
             summary = self._summary(result, message)
             self.recorder.close(summary)
+            if not self.link.state.sysid:  # never reached a vehicle: no flight, no folder
+                shutil.rmtree(self.folder, ignore_errors=True)
         return FlightResult(result, message, self.folder, summary)
 
     async def _restore_params(self) -> None:

@@ -38,7 +38,7 @@ from companion.control.vector import Vec3
 from companion.link.state import VehicleState
 
 from .base import LinkError, TrafficHook, VehicleLink
-from .url import parse_url
+from .url import parse_endpoint
 from .flavour import PX4, Flavour
 
 __all__ = ["MavsdkLink"]
@@ -58,8 +58,11 @@ class _Tap(asyncio.DatagramProtocol):
 
 
 def _mavsdk_url(url: str) -> str:
-    direction, host, port = parse_url(url)
-    return f"udpin://{host}:{port}" if direction == "in" else f"udpout://{host}:{port}"
+    """Our connection string in MAVSDK's words (it calls a TCP client tcpout://)."""
+    e = parse_endpoint(url)
+    if e.kind == "tcp":
+        return f"tcpout://{e.host}:{e.port}"
+    return e.url
 
 
 class MavsdkLink(VehicleLink):

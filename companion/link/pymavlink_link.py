@@ -29,18 +29,21 @@ from companion.control.vector import Vec3
 from companion.link.state import VehicleState
 
 from .base import LinkError, TrafficHook, VehicleLink
-from .url import parse_url
+from .url import Endpoint, parse_endpoint
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
 from companion.mavlink import ftp
 from companion.mavlink.events import MSG_ID_EVENT, EventCatalogue, parse_event
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, decode_value, encode_value, param_name
 from companion.mavlink.signing import SignatureCheck, enable_signing, fingerprint
+from companion.mavlink.stream import SerialEndpoint, TcpEndpoint
 from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
 
 __all__ = ["PymavlinkLink"]
 
 QUEUE_SIZE = 2000
+NOTHING_HEARD_S = 3.0
+"""wall seconds of complete silence after which connecting gives up and says what to check"""
 _RESULTS = {1: "temporarily rejected", 2: "denied", 3: "unsupported", 4: "failed", 5: "in progress", 6: "cancelled"}
 POSITION_TARGET_MASK = 2048
 """SET_POSITION_TARGET_LOCAL_NED: position, velocity, acceleration and yaw used; yaw rate ignored"""
@@ -59,8 +62,10 @@ STREAM_RATES_HZ = {
 class PymavlinkLink(VehicleLink):
     def __init__(self, url: str, traffic: TrafficHook | None = None, sysid: int = 255, compid: int = 191,
                  command_timeout_s: float = 1.0, command_retries: int = 5, signing_key: bytes | None = None) -> None:
-        self.direction, host, port = parse_url(url)
-        self.address = (host, port)
+        self.endpoint = parse_endpoint(url)
+        self.direction = "in" if self.endpoint.kind == "udpin" else "out"
+        self.address = (self.endpoint.host, self.endpoint.port) if self.endpoint.kind != "serial" else (
+            self.endpoint.device, self.endpoint.baud)
         self.traffic = traffic
         self.state = VehicleState()
         self.clock = VehicleClock()
@@ -79,7 +84,7 @@ class PymavlinkLink(VehicleLink):
         self.command_retries = command_retries
         """5 tries: with 10% loss each way one try fails 19% of the time; 3 tries would still fail
         0.7% of commands, 5 tries 0.02%"""
-        self._transport: UdpEndpoint | None = None
+        self._transport: UdpEndpoint | TcpEndpoint | SerialEndpoint | None = None
         self._peer: tuple[str, int] | None = self.address if self.direction == "out" else None
         self._queue: asyncio.Queue[tuple[bytes, float]] = asyncio.Queue(maxsize=QUEUE_SIZE)
         self._acks: dict[int, asyncio.Future[int]] = {}
@@ -98,13 +103,32 @@ class PymavlinkLink(VehicleLink):
     # --- transport -------------------------------------------------------------------------
 
     async def open(self) -> None:
-        local = self.address if self.direction == "in" else ("0.0.0.0", 0)
-        endpoint = UdpEndpoint(self._received, self._socket_error)
-        try:
-            endpoint.open(local)
-        except OSError as exc:
-            raise LinkError(f"cannot open UDP {local[0]}:{local[1]}: {exc.strerror or exc}") from None
-        self._transport = endpoint
+        e = self.endpoint
+        if e.kind == "tcp":
+            tcp = TcpEndpoint(self._received, self._socket_error, self._stream_closed)
+            try:
+                await tcp.open(e.host, e.port)
+            except (OSError, TimeoutError) as exc:
+                why = getattr(exc, "strerror", None) or "no answer"
+                raise LinkError(f"cannot connect to tcp://{e.host}:{e.port}: {why}. Is the autopilot running and "
+                                "serving TCP there (ArduPilot SITL: 5760)?") from None
+            self._transport, self._peer = tcp, tcp.peer
+        elif e.kind == "serial":
+            serial = SerialEndpoint(self._received, self._socket_error, self._stream_closed)
+            try:
+                serial.open(e.device, e.baud, e.flow_control)
+            except OSError as exc:
+                raise LinkError(f"cannot open {e.device}: {exc.strerror or exc}. Wired, and yours to open "
+                                "(the dialout group)?") from None
+            self._transport, self._peer = serial, serial.peer
+        else:
+            local = self.address if self.direction == "in" else ("0.0.0.0", 0)
+            endpoint = UdpEndpoint(self._received, self._socket_error)
+            try:
+                endpoint.open(local)
+            except OSError as exc:
+                raise LinkError(f"cannot open UDP {local[0]}:{local[1]}: {exc.strerror or exc}") from None
+            self._transport = endpoint
         self._send(self.mav.heartbeat_encode(mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_AUTOPILOT_INVALID,
                                              0, 0, mavlink.MAV_STATE_ACTIVE))
 
@@ -129,6 +153,9 @@ class PymavlinkLink(VehicleLink):
     @property
     def rx_queue_depth(self) -> int:
         return self._queue.qsize()
+
+    def _stream_closed(self) -> None:
+        self.stats["stream_closed"] += 1  # TCP closed by the other end: nothing more will arrive
 
     def _socket_error(self, exc: OSError) -> None:
         self.stats["socket_errors"] += 1
@@ -292,10 +319,15 @@ class PymavlinkLink(VehicleLink):
     # --- connection ----------------------------------------------------------------------
 
     async def wait_connected(self, timeout_s: float) -> None:
+        where = self.endpoint.url
+        heard_by = time.monotonic() + min(NOTHING_HEARD_S, timeout_s)
+        while not self.stats["received"] and time.monotonic() < heard_by:
+            await asyncio.sleep(0.05)
+        if not self.stats["received"]:
+            raise LinkError(nothing_heard(self.endpoint, min(NOTHING_HEARD_S, timeout_s)))
         try:
-            await asyncio.wait_for(self._connected.wait(), timeout_s)
+            await asyncio.wait_for(self._connected.wait(), max(timeout_s - NOTHING_HEARD_S, 1.0))
         except TimeoutError:
-            where = f"{self.address[0]}:{self.address[1]}"
             beats = {k.rsplit(" ", 1)[0]: n for k, n in self.signing_rejections.items() if k.endswith(" HEARTBEAT")}
             if beats:
                 why = ", ".join(f"{n} {reason}" for reason, n in sorted(beats.items()))
@@ -307,7 +339,8 @@ class PymavlinkLink(VehicleLink):
             else:
                 hint = (f"; a signing vehicle ignores a wrong key: does it have ours (fingerprint "
                         f"{fingerprint(self.signature_check.key)})?")
-            raise LinkError(f"no autopilot heartbeat from {where} within {timeout_s:g} s{hint}") from None
+            raise LinkError(f"{where} answers, but with no autopilot heartbeat within {timeout_s:g} s (a ground "
+                            f"station or another program on that port?){hint}") from None
         assert self.flavour is not None
         if self.flavour is ARDUPILOT:
             await self._prepare_ardupilot()
@@ -529,3 +562,17 @@ def _reasons(texts: list[tuple[int, str]], most: int = 4) -> str:
     """What the autopilot said after a refusal, the most severe first (MAV_SEVERITY: lower is worse)."""
     ranked = sorted(enumerate(texts), key=lambda it: (it[1][0], -it[0]))[:most]
     return "; ".join(text for _, (_, text) in ranked)
+
+
+def nothing_heard(e: Endpoint, after_s: float) -> str:
+    """What to check when nothing at all arrived."""
+    if e.kind == "udpout":
+        return (f"nothing heard from {e.url} in {after_s:g} s: is the vehicle running, listening on port {e.port}? "
+                f"A vehicle that sends first (PX4 SITL sends to 14540) needs udpin://0.0.0.0:PORT instead")
+    if e.kind == "udpin":
+        return (f"nothing arrived on {e.url} in {after_s:g} s: is the vehicle running, and sending to port "
+                f"{e.port}? A vehicle that listens (the bundled one) needs udp://HOST:PORT instead")
+    if e.kind == "tcp":
+        return f"connected to {e.url}, but nothing arrived in {after_s:g} s: is that a MAVLink port?"
+    return (f"nothing arrived on {e.device} in {after_s:g} s: wired (TX to RX), the same baud as the autopilot's "
+            f"port ({e.baud}), and MAVLink enabled on it (PX4 MAV_1_CONFIG, ArduPilot SERIAL2_PROTOCOL=2)?")

@@ -18,6 +18,8 @@ from pathlib import Path
 
 from pymavlink import mavutil
 
+from companion.vehicle_process import VehicleProcess
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -80,44 +82,12 @@ def free_udp_port() -> int:
         return s.getsockname()[1]
 
 
-class SitlProcess:
-    """``python -m sitl`` in its own process; :meth:`stop` returns its final report."""
+class SitlProcess(VehicleProcess):
+    """``python -m sitl`` in its own process (companion/vehicle_process.py), started from the
+    checkout with the test environment; :meth:`stop` returns its final report."""
 
     def __init__(self, *args: str, speedup: float = 2.0, env: dict[str, str] | None = None) -> None:
-        self.port = free_udp_port()
-        self.speedup = speedup
-        cmd = [sys.executable, "-m", "sitl", "--listen", f"127.0.0.1:{self.port}", "--speedup", str(speedup), *args]
-        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                     env=child_env(**(env or {})))
-        self.banner: list[str] = []
-        while True:
-            line = self.proc.stdout.readline()  # type: ignore[union-attr]
-            self.banner.append(line)
-            if "listening" in line:
-                break
-            if not line or len(self.banner) > 5:
-                rest = self.proc.communicate(timeout=5)[0]
-                raise RuntimeError(f"sitl did not start: {''.join(self.banner)}{rest}")
-        self.report: dict | None = None
-
-    @property
-    def url(self) -> str:
-        return f"127.0.0.1:{self.port}"
-
-    def alive(self) -> bool:
-        return self.proc.poll() is None
-
-    def stop(self) -> dict:
-        if self.report is not None:
-            return self.report
-        if self.alive():
-            self.proc.send_signal(signal.SIGTERM)
-        out = self.proc.communicate(timeout=10)[0]
-        for line in out.splitlines():
-            if line.startswith("sitl: stopped "):
-                self.report = json.loads(line[len("sitl: stopped "):])
-                return self.report
-        raise RuntimeError(f"sitl gave no report (exit {self.proc.returncode}):\n{out}")
+        super().__init__(*args, speedup=speedup, env=child_env(**(env or {})), cwd=ROOT, own_session=False)
 
 
 class RelayProcess:
