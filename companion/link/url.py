@@ -56,7 +56,8 @@ def parse_endpoint(url: str) -> Endpoint:
         return Endpoint("serial", device=device, baud=int(baud), flow_control=scheme == "serial_flowcontrol")
     host, _, port = rest.rpartition(":")
     kinds = {"udp": "udpout", "udpout": "udpout", "udpin": "udpin", "tcp": "tcp"}
-    if scheme not in kinds or not port.isdigit() or not 0 < int(port) < 65536 or (host and not _HOST.match(host)):
+    lowest = 0 if scheme == "udpin" else 1  # udpin on port 0: any free port (tests)
+    if scheme not in kinds or not port.isdigit() or not lowest <= int(port) < 65536 or (host and not _HOST.match(host)):
         raise ValueError(f"--connect {url!r}: {_EXPECTED}")
     if not host:
         host = "0.0.0.0" if scheme == "udpin" else "127.0.0.1"

@@ -222,6 +222,7 @@ def test_ardupilot_flavour_guided_throttle_and_parameters_put_back(sitl, compani
     attitude targets to ANGLE_MAX, so ANGLE_MAX is left alone), and puts both parameters back."""
     s = sitl("--flavour", "ardupilot", *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
     gcs = client(s.url, source_system=200)
+    gcs.wait("HEARTBEAT")
     before = {name: gcs.param(name) for name in ("GUID_OPTIONS", "GUID_TIMEOUT", "ANGLE_MAX")}
     c = companion("missions/hover45.toml", s.url)
     code, out = c.finish()
