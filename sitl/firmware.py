@@ -142,7 +142,8 @@ class Px4Sih:
 @dataclass
 class ArduCopterSitl:
     """One ArduCopter SITL ("+" quad), headless, at ``speedup``; the companion connects over TCP
-    (SERIAL0, port 5760+10N, ArduPilot's default) or UDP (``udp_port``: SERIAL1 sends to it)."""
+    (SERIAL0, port 5760+10N, ArduPilot's default; the simulation waits for it) or UDP (``udp_port``:
+    SERIAL0 sends there instead)."""
 
     binary: Path
     instance: int = 0
@@ -150,12 +151,15 @@ class ArduCopterSitl:
     params: dict[str, float] = field(default_factory=dict)
     home: str = "47.397742,8.545594,488.0,0"
     udp_port: int | None = None
-    """also stream on SERIAL1 to 127.0.0.1:udp_port (the companion listens: udpin://)"""
+    """SERIAL0 sends to 127.0.0.1:udp_port instead of serving TCP (the companion listens: udpin://)"""
     workdir: Path | None = None
     proc: subprocess.Popen[bytes] | None = None
 
-    DEFAULTS = {"FRAME_CLASS": 1, "FRAME_TYPE": 0, "SIM_SPEEDUP": 1}
-    """a "+" quad; everything else at ArduCopter's own defaults"""
+    DEFAULTS = {"FRAME_CLASS": 1, "FRAME_TYPE": 0, "SIM_SPEEDUP": 1,
+                "INS_ACCOFFS_X": 0.001, "INS_ACCOFFS_Y": 0.001, "INS_ACCOFFS_Z": 0.001,
+                "INS_ACC2OFFS_X": 0.001, "INS_ACC2OFFS_Y": 0.001, "INS_ACC2OFFS_Z": 0.001}
+    """a "+" quad whose accelerometers count as calibrated (else: "3D Accel calibration needed");
+    everything else at ArduCopter's own defaults"""
 
     @property
     def tcp_port(self) -> int:
@@ -178,11 +182,13 @@ class ArduCopterSitl:
         cmd = [str(self.binary), "--model", "+", "--speedup", f"{self.speedup:g}", "--home", self.home,
                "--defaults", str(defaults), "-I", str(self.instance)]
         if self.udp_port is not None:
-            cmd += ["--serial1", f"udpclient:127.0.0.1:{self.udp_port}"]
+            cmd += ["--serial0", f"udpclient:127.0.0.1:{self.udp_port}"]
         self.proc = subprocess.Popen(cmd, cwd=self.workdir, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                      start_new_session=True)
+        if self.udp_port is not None:
+            return self
         deadline = time.monotonic() + 20.0
-        while time.monotonic() < deadline:  # SERIAL0 listens on TCP once it is up
+        while time.monotonic() < deadline:  # SERIAL0 listens on TCP once it is up (its clock waits for it)
             with socket.socket() as s:
                 if s.connect_ex(("127.0.0.1", self.tcp_port)) == 0:
                     break

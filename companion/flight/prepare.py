@@ -106,6 +106,6 @@ async def prepare_ardupilot(params: ParamChanges, log: Callable[[str], None]) ->
     if not await params.set("GUID_TIMEOUT", GUIDED_TIMEOUT_S, "a silent companion is noticed at once"):
         log("GUID_TIMEOUT: no such parameter; a dead companion's last target is held for ArduPilot's default")
     await params.set("ATC_RATE_FF_ENAB", 0.0, "attitude targets flown as sent, not shaped")
-    for name in ("ANGLE_BOOST", "ATC_ANG_BOOST"):
+    for name in ("ATC_ANGLE_BOOST", "ANGLE_BOOST"):  # 4.8 / older
         if await params.set(name, 0.0, "no extra throttle in tilt: the controller sends the full thrust"):
             break

@@ -125,6 +125,8 @@ class Flight:
         self.sent = 0
         self.rejected = 0
         self.grid = TickGrid(1.0 / self.rate_hz)
+        self.ticks_on_clock = 0
+        """ticks fired by the clock line because the sample for them had not arrived"""
         self.output = choose_output(opt.output, "px4")
         """what SET_ATTITUDE_TARGET carries (output.py); chosen again once the autopilot is known"""
         self.health = HealthMonitor()
@@ -301,6 +303,7 @@ class Flight:
             if remaining <= precise_s:
                 if remaining > 0:
                     time.sleep(remaining)
+                self.ticks_on_clock += 1
                 return
             arrived.clear()
             if state.t >= due_stamp:
@@ -495,6 +498,7 @@ class Flight:
             "output": self.output.mode, "type_mask": self.output.type_mask,
             "autopilot": self.link.state.autopilot, "setpoints_sent": self.sent,
             "setpoints_rejected": self.rejected, "late_ticks": self.grid.late_ticks,
+            "ticks_on_clock": self.ticks_on_clock,
             "telemetry_outages": w.outages, "longest_outage_s": w.longest_outage_s,
             "thrust_max_n": thrust.thrust_max_n if thrust else None,
             "thrust_max_est_n": thrust.estimated_thrust_max_n if thrust else None,

@@ -23,6 +23,8 @@ TrafficHook = Callable[[bytes], None]
 """called with every raw datagram sent or received (for the .tlog)"""
 
 
+POSITION_WAIT_S = 120.0
+"""how long a vehicle that answers may take to have a position (ArduCopter SITL: ~42 s at 1x)"""
 REASON_WAIT_S = 0.3
 """wall seconds to wait for the text that explains a refused command"""
 
@@ -68,6 +70,7 @@ class VehicleLink(abc.ABC):
         no origin yet (ArduCopter: ~40 s after boot) sends attitude but no LOCAL_POSITION_NED: that
         is waited for with progress, not mistaken for a missing vehicle."""
         st = self.state
+        timeout_s = max(timeout_s, POSITION_WAIT_S)
         end = time.monotonic() + timeout_s
         said = 0.0
         while not st.has_navigation:
@@ -76,7 +79,7 @@ class VehicleLink(abc.ABC):
                 have = "attitude but no position (its estimator has no origin yet)" if math.isfinite(st.t_att) \
                     else "no attitude and no position"
                 raise LinkError(f"the autopilot answers but sends {have} after {timeout_s:g} s "
-                                "(LOCAL_POSITION_NED, ATTITUDE_QUATERNION); a longer --connect-timeout may do")
+                                "(LOCAL_POSITION_NED, ATTITUDE_QUATERNION): GPS or position source, EKF origin?")
             if self.progress is not None and now - said > 5.0:
                 said = now
                 self.progress("vehicle found, waiting for its position (LOCAL_POSITION_NED)..." if
