@@ -69,7 +69,8 @@ def build(args: argparse.Namespace) -> MavlinkServer:
                                             flavour="ardupilot" if args.flavour == "ardupilot" else "px4"))
     cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
                        origin=args.origin, signing_key=signing_key(args, "sitl"),
-                       wait_for_setpoints_s=args.wait_for_setpoints, lockstep_period_s=args.lockstep * 1e-3)
+                       wait_for_setpoints_s=args.wait_for_setpoints, lockstep_period_s=args.lockstep * 1e-3,
+                       max_wait_wall_s=3.0 if args.lockstep else 1.0)
     server = MavlinkServer(ap, cfg)
     for name, value in args.param:
         reason = server.params.set(name, value)

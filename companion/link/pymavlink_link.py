@@ -324,7 +324,13 @@ class PymavlinkLink(VehicleLink):
         while not self.stats["received"] and time.monotonic() < heard_by:
             await asyncio.sleep(0.05)
         if not self.stats["received"]:
-            raise LinkError(nothing_heard(self.endpoint, min(NOTHING_HEARD_S, timeout_s)))
+            why = nothing_heard(self.endpoint, min(NOTHING_HEARD_S, timeout_s))
+            if self.endpoint.kind == "udpout":  # a signing vehicle ignores us, and is silent too
+                why += (". Last: a vehicle that uses MAVLink signing stays silent to a companion without its key "
+                        "(give its key: --signing-key-file)" if self.signature_check is None else
+                        f". Last: a signing vehicle ignores a wrong key: does it have ours (fingerprint "
+                        f"{fingerprint(self.signature_check.key)})?")
+            raise LinkError(why)
         try:
             await asyncio.wait_for(self._connected.wait(), max(timeout_s - NOTHING_HEARD_S, 1.0))
         except TimeoutError:

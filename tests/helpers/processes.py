@@ -172,9 +172,16 @@ class Client:
                         target=(1, 1)) -> None:
         self.m.mav.set_attitude_target_send(0, target[0], target[1], type_mask, list(q), *rates, thrust)
 
-    def param(self, name: str, timeout: float = 5.0) -> float:
-        self.m.mav.param_request_read_send(1, 1, name.encode(), -1)
-        return self.wait("PARAM_VALUE", lambda p: p.param_id == name, timeout).param_value
+    def param(self, name: str, timeout: float = 5.0, tries: int = 3) -> float:
+        """A parameter's value; asked again if no answer (a busy vehicle may learn our address late)."""
+        for attempt in range(tries):
+            self.m.mav.param_request_read_send(1, 1, name.encode(), -1)
+            try:
+                return self.wait("PARAM_VALUE", lambda p: p.param_id == name, timeout / tries).param_value
+            except AssertionError:
+                if attempt == tries - 1:
+                    raise
+        raise AssertionError(name)
 
     def close(self) -> None:
         self.m.close()
