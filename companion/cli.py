@@ -54,10 +54,17 @@ def _fly(args: argparse.Namespace) -> int:
         print("companion: error: MAVLink signing needs --backend pymavlink (MAVSDK 4.1's Python API takes no "
               "signing key)", file=sys.stderr)
         return 2
-    opts = FlightOptions(connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
+    opts = FlightOptions(mission_file=Path(args.mission),
+                         connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
                          out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet, signing_key=key,
                          connect_timeout_s=args.connect_timeout, output=args.output)
-    return asyncio.run(run_flight(Flight(mission, opts), plots=not args.no_plots))
+    try:
+        flight = Flight(mission, opts)
+    except OSError as exc:
+        print(f"companion: error: cannot write the flight record under {args.out}: {exc.strerror or exc}",
+              file=sys.stderr)
+        return 2
+    return asyncio.run(run_flight(flight, plots=not args.no_plots))
 
 
 def _plot(args: argparse.Namespace) -> int:

@@ -39,7 +39,7 @@ def run_demo(out_dir: Path = Path("flights"), speedup: float = 8.0, controller: 
                   flush=True)
             t0 = time.monotonic()
             opts = FlightOptions(connect=f"udp://{vehicle.url}", controller=controller, out_dir=out_dir,
-                                 output="attitude_rates")
+                                 output="attitude_rates", mission_file=MISSIONS_DIR / f"{name}.toml")
             code = asyncio.run(run_flight(Flight(mission, opts), plots=True))
             print(f"({time.monotonic() - t0:.0f} s wall)", flush=True)
         finally:

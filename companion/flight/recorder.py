@@ -8,20 +8,27 @@ A flight folder holds
 - ``health.csv``: every 10 vehicle seconds, the companion's memory, CPU, receive queue, message
   and setpoint rates (:mod:`companion.flight.health`);
 - ``segments.json`` and ``summary.md``: per mission step, RMS and peak position error, peak tilt,
-  the final external-force estimate and the thrust-scale estimate.
+  the final external-force estimate and the thrust-scale estimate (strict JSON: no NaN);
+- ``metadata.json``: what a researcher cites — project version and commit, the mission as flown
+  (its file copied beside it), controller, gains and every other parameter, the autopilot's kind,
+  version and a parameter snapshot, the host.
 
 Rows go straight to the file and the segment statistics are running sums, so memory stays flat
-however long the flight.
+however long the flight. A disk that fills or fails mid-flight stops the recording, with one
+warning, and never the flight: the flight goes on and lands as it would have.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
+import shutil
 import struct
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import IO
@@ -117,7 +124,12 @@ class FlightRecorder:
     folder: Path
     segments: list[SegmentStats] = field(default_factory=list)
 
+    warn: Callable[[str], None] = print
+    failed: str | None = None
+    """why the recording stopped (a full or failing disk), or None"""
+
     def __post_init__(self) -> None:
+        """Creates the folder and its files: OSError if that cannot be done (the caller refuses to fly)."""
         self.folder.mkdir(parents=True, exist_ok=True)
         self._csv_file: IO[str] = open(self.folder / "timeseries.csv", "w", newline="", buffering=1 << 16)
         self._csv = csv.writer(self._csv_file)
@@ -128,10 +140,25 @@ class FlightRecorder:
         self._health: IO[str] | None = None
         self._trail = ReferenceTrail()
 
+    def _fail(self, exc: OSError) -> None:
+        """Stop recording (the flight goes on); say so once."""
+        if self.failed is None:
+            self.failed = f"{exc.strerror or exc} ({self.folder})"
+            self.warn(f"WARNING: the flight record stopped: {self.failed}; the flight goes on")
+            for f in (self._csv_file, self._tlog, self._health):
+                with contextlib.suppress(Exception):
+                    if f is not None:
+                        f.close()
+
     # --- raw traffic -------------------------------------------------------------------------
 
     def traffic(self, datagram: bytes) -> None:
-        self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + datagram)
+        if self.failed is not None:
+            return
+        try:
+            self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + datagram)
+        except OSError as exc:
+            self._fail(exc)
 
     # --- segments ------------------------------------------------------------------------
 
@@ -191,36 +218,76 @@ class FlightRecorder:
                 seg.thrust_max_est_n = thrust_max_est_n
         if seg is not None:
             seg.peak_tilt_deg = max(seg.peak_tilt_deg, tilt)
-        self._csv.writerow((
-            f"{t:.4f}", f"{wall:.4f}", seg.index if seg else -1, int(state.offboard), int(streaming),
-            *(f"{x:.5g}" for x in (*p, *v, *ref, *q, *sp, *thrust, *force, thrust_max_n, thrust_max_est_n)),
-            f"{state.t_pos:.4f}", f"{err:.5g}",
-        ))
+        if self.failed is not None:
+            return
+        try:
+            self._csv.writerow((
+                f"{t:.4f}", f"{wall:.4f}", seg.index if seg else -1, int(state.offboard), int(streaming),
+                *(f"{x:.5g}" for x in (*p, *v, *ref, *q, *sp, *thrust, *force, thrust_max_n, thrust_max_est_n)),
+                f"{state.t_pos:.4f}", f"{err:.5g}",
+            ))
+        except OSError as exc:
+            self._fail(exc)
+            return
         self.rows += 1
 
     def health(self, row: tuple) -> None:
         """A row of ``health.csv`` (:mod:`companion.flight.health`)."""
-        if self._health is None:
-            self._health = open(self.folder / "health.csv", "w", newline="", buffering=1)
-            csv.writer(self._health).writerow(HEALTH_COLUMNS)
-        csv.writer(self._health).writerow(row)
+        if self.failed is not None:
+            return
+        try:
+            if self._health is None:
+                self._health = open(self.folder / "health.csv", "w", newline="", buffering=1)
+                csv.writer(self._health).writerow(HEALTH_COLUMNS)
+            csv.writer(self._health).writerow(row)
+        except OSError as exc:
+            self._fail(exc)
+
+    def metadata(self, meta: dict, mission_file: Path | None = None) -> None:
+        """``metadata.json`` (and a copy of the mission file beside it)."""
+        if self.failed is not None:
+            return
+        try:
+            if mission_file is not None and mission_file.is_file():
+                shutil.copyfile(mission_file, self.folder / f"mission{mission_file.suffix}")
+            (self.folder / "metadata.json").write_text(strict_json(meta))
+        except OSError as exc:
+            self._fail(exc)
 
     # --- closing -------------------------------------------------------------------------
 
     def close(self, summary: dict) -> None:
-        self._csv_file.close()
-        self._tlog.close()
-        if self._health is not None:
-            self._health.close()
         data = {**summary, "segments": [s.as_dict() for s in self.segments]}
-        (self.folder / "segments.json").write_text(json.dumps(data, indent=1, default=_json_default))
-        (self.folder / "summary.md").write_text(summary_markdown(data))
+        data["record"] = "complete" if self.failed is None else f"stopped: {self.failed}"
+        if self.failed is not None:
+            return
+        try:
+            self._csv_file.close()
+            self._tlog.close()
+            if self._health is not None:
+                self._health.close()
+            (self.folder / "segments.json").write_text(strict_json(data))
+            (self.folder / "summary.md").write_text(summary_markdown(data))
+        except OSError as exc:
+            self._fail(exc)
 
 
-def _json_default(x: object) -> object:
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
+def _finite(x: object) -> object:
+    """JSON's own values only: a non-finite float is null, tuples are lists, anything else its text."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {str(k): _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if x is None or isinstance(x, (bool, int, str)):
+        return x
     return str(x)
+
+
+def strict_json(data: object) -> str:
+    """JSON as RFC 8259 has it (no NaN or Infinity, which other tools refuse)."""
+    return json.dumps(_finite(data), indent=1, allow_nan=False)
 
 
 def summary_markdown(data: dict) -> str:
@@ -232,8 +299,13 @@ def summary_markdown(data: dict) -> str:
         f"backend {data.get('backend', '')}, autopilot {data.get('autopilot', '')}",
         f"- thrust scale: {_fmt(data.get('thrust_max_n'))} N in use, online estimate "
         f"{_fmt(data.get('thrust_max_est_n'))} N",
-        f"- setpoints sent: {data.get('setpoints_sent', '')}, "
-        f"rejected by the guard: {data.get('setpoints_rejected', '')}",
+        f"- setpoints sent: {data.get('setpoints_sent', '')} "
+        f"({_fmt(data.get('setpoint_rate_hz'))} Hz measured over the offboard flight, "
+        f"{data.get('rate_hz', '')} Hz asked for), rejected by the guard: {data.get('setpoints_rejected', '')}",
+        *([f"- skipped on this vehicle: {'; '.join(data['skipped_steps'])}"] if data.get("skipped_steps") else []),
+        *([f"- parameters NOT put back: {data['params_not_restored']}"] if data.get("params_not_restored") else []),
+        "",
+        "Times and durations are vehicle seconds (the autopilot's clock), not wall time.",
         "",
         "| step | action | duration [s] | RMS error [m] | peak error [m] | peak tilt [deg] "
         "| force estimate N/E/D [N] | ok |",

@@ -20,6 +20,7 @@ import contextlib
 import dataclasses
 import datetime
 import math
+import re
 import shutil
 import time
 from collections.abc import Awaitable, Callable
@@ -40,7 +41,7 @@ from .offboard import OffboardController, PositionTarget, Setpoint
 from .output import choose_output
 from .pacing import TickGrid
 from .prepare import ParamChanges, prepare_ardupilot, thrust_scale
-from .recorder import FlightRecorder
+from .recorder import FlightRecorder, strict_json
 from .silence import AwakeSilence
 from .steps import run_step
 from .thrust_scale import ThrustScaleEstimator
@@ -69,6 +70,8 @@ class FlightOptions:
     """MAVLink 2 signing key (pymavlink backend): sign what we send, believe only signed frames"""
     output: str = "auto"
     """what SET_ATTITUDE_TARGET carries: auto | attitude | rates | attitude_rates (output.py)"""
+    mission_file: Path | None = None
+    """copied into the flight record"""
 
 
 @dataclass
@@ -81,6 +84,25 @@ class FlightResult:
     @property
     def exit_code(self) -> int:
         return EXIT_CODES.get(self.result, 1)
+
+
+def flight_folder(out_dir: Path, mission_name: str, controller: str) -> Path:
+    """``<out>/<time>_<mission>_<controller>[_n]``, always inside ``out``: the names are reduced to
+    a safe set of characters (a mission is checked when loaded, but a file name, a plan's stem or
+    a program can still carry ``/`` or ``..``)."""
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    base = f"{stamp}_{_safe(mission_name)}_{_safe(controller)}"
+    folder, n = out_dir / base, 1
+    while folder.exists():
+        n += 1
+        folder = out_dir / f"{base}_{n}"
+    if folder.resolve().parent != out_dir.resolve():
+        raise ValueError(f"flight folder {folder} is not inside {out_dir}")
+    return folder
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", name).lstrip(".")[:64] or "flight"
 
 
 def wall_timeout_s(timeout_v_s: float, rate: float) -> float:
@@ -97,13 +119,8 @@ class Flight:
         self.opt = opt = options or FlightOptions()
         self.controller_name = opt.controller or mission.controller.position
         self.rate_hz = opt.rate_hz or mission.controller.rate_hz
-        stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-        self.folder = opt.out_dir / f"{stamp}_{mission.name}_{self.controller_name}"
-        n = 1
-        while self.folder.exists():
-            n += 1
-            self.folder = opt.out_dir / f"{stamp}_{mission.name}_{self.controller_name}_{n}"
-        self.recorder = FlightRecorder(self.folder)
+        self.folder = flight_folder(opt.out_dir, mission.name, self.controller_name)
+        self.recorder = FlightRecorder(self.folder, warn=self.log)
         link_options = {} if opt.signing_key is None else {"signing_key": opt.signing_key}
         self.link: VehicleLink = open_link(opt.connect, opt.backend, traffic=self.recorder.traffic, **link_options)
         safety = mission.safety
@@ -133,6 +150,7 @@ class Flight:
         self.tick_periods: list[float] = []
         """wall-clock spacing of sent setpoints (bounded), for the jitter benchmark"""
         self._last_sent_wall = math.nan
+        self._first_sent_t = self._last_sent_t = math.nan
         self.failure: str | None = None
         self._breach: str | None = None
 
@@ -181,6 +199,10 @@ class Flight:
         finally:
             summary = self._summary(result, message)
             self.recorder.close(summary)
+            params = self.link.state.params
+            if params and self.recorder.failed is None:  # the autopilot's parameter snapshot
+                with contextlib.suppress(OSError):
+                    (self.folder / "parameters.json").write_text(strict_json(dict(sorted(params.items()))))
             if not self.link.state.sysid:  # never reached a vehicle: no flight, no folder
                 shutil.rmtree(self.folder, ignore_errors=True)
         return FlightResult(result, message, self.folder, summary)
@@ -326,6 +348,10 @@ class Flight:
             else:
                 self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust, self.output.type_mask)
             self.sent += 1
+            t_sent = self.link.state.t
+            if math.isnan(self._first_sent_t):
+                self._first_sent_t = t_sent
+            self._last_sent_t = t_sent
             now = time.monotonic()
             if math.isfinite(self._last_sent_wall):
                 self.tick_periods.append(now - self._last_sent_wall)
@@ -383,6 +409,7 @@ class Flight:
             self.output = choose_output(self.opt.output, link.state.autopilot)
             self.log(f"setpoints: {self.output.mode} (type_mask {self.output.type_mask})")
             await self._make_controller()
+            self.recorder.metadata(self._metadata(), self.opt.mission_file)
             for i, step in enumerate(m.steps):
                 self.recorder.begin(i, step.name, step.action, link.state.t)
                 self.log(f"step {step.name}")
@@ -480,6 +507,12 @@ class Flight:
                 self.log(f"{exc}; retrying")
                 await self.sleep_v(1.0)
 
+    def _metadata(self) -> dict:
+        from .metadata import flight_metadata
+
+        return flight_metadata(self.mission, self.controller_name, self.output.mode, self.rate_hz, self.link,
+                               self.opt.backend, self.opt.connect)
+
     # --- summary -------------------------------------------------------------------------
 
     def _summary(self, result: str, message: str) -> dict:
@@ -497,6 +530,8 @@ class Flight:
             "controller": self.controller_name, "rate_hz": self.rate_hz, "backend": self.opt.backend,
             "output": self.output.mode, "type_mask": self.output.type_mask,
             "autopilot": self.link.state.autopilot, "setpoints_sent": self.sent,
+            "setpoint_rate_hz": (self.sent - 1) / (self._last_sent_t - self._first_sent_t)
+            if self.sent > 1 and self._last_sent_t > self._first_sent_t else None,
             "setpoints_rejected": self.rejected, "late_ticks": self.grid.late_ticks,
             "ticks_on_clock": self.ticks_on_clock,
             "telemetry_outages": w.outages, "longest_outage_s": w.longest_outage_s,
@@ -511,6 +546,7 @@ class Flight:
             "older_samples": self.link.state.older_samples,
             "skipped_steps": list(self.skipped),
             "params_not_restored": dict(self.params.not_restored),
+            "record": "complete" if self.recorder.failed is None else f"stopped: {self.recorder.failed}",
             "signing": fingerprint(self.opt.signing_key) if self.opt.signing_key else "off",
             "signing_rejections": dict(getattr(self.link, "signing_rejections", {})),
         }

@@ -95,6 +95,7 @@ class PymavlinkLink(VehicleLink):
         self._ftp_reply: asyncio.Future[ftp.Packet] | None = None
         self._ftp_lock = asyncio.Lock()
         self.event_error = ""
+        self.autopilot_version: str | None = None
         self.events: EventCatalogue | None = None
         """PX4's event texts, fetched from the vehicle at connection (None: events read as ids)"""
         self._connected = asyncio.Event()
@@ -296,6 +297,12 @@ class PymavlinkLink(VehicleLink):
                 return
             if msg.result != mavlink.MAV_RESULT_IN_PROGRESS:
                 fut.set_result(msg.result)
+        elif kind == "AUTOPILOT_VERSION":
+            v = msg.flight_sw_version
+            kinds = {0: "dev", 64: "alpha", 128: "beta", 192: "rc", 255: "official"}
+            custom = bytes(msg.flight_custom_version).hex()[:16]
+            self.autopilot_version = (f"{v >> 24 & 0xFF}.{v >> 16 & 0xFF}.{v >> 8 & 0xFF} "
+                                      f"{kinds.get(v & 0xFF, v & 0xFF)} ({custom})")
         elif kind == "PARAM_ERROR":
             # ArduPilot 4.7+ answers a read of a parameter it does not have, instead of silence
             if msg.target_system in (0, self.mav.srcSystem):
@@ -354,6 +361,10 @@ class PymavlinkLink(VehicleLink):
             await self._load_events()
         for msg_id, hz in STREAM_RATES_HZ.items():
             await self.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz, require_ack=False)
+        await self.command_long(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                                require_ack=False, attempts=2)
+        # every parameter, for the flight record's snapshot (they arrive while the mission flies)
+        self._send(self.mav.param_request_list_encode(self.state.sysid, self.state.compid))
         await self._wait_navigation(timeout_s)
 
     async def fetch_file(self, path: str, timeout_s: float = 1.0, max_bytes: int = 4 << 20) -> bytes:
