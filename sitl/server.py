@@ -91,6 +91,9 @@ class ServerConfig:
 
 
 UNSIGNED_ALLOWED = frozenset({"HEARTBEAT", "RADIO_STATUS"})
+FORWARDED = frozenset({"NAMED_VALUE_FLOAT", "NAMED_VALUE_INT", "DEBUG_VECT", "DEBUG"})
+"""messages for the ground station, routed on as an autopilot does"""
+FORWARD_PER_S = 100
 """with signing on, what may arrive unsigned (it changes nothing, and teaches no peer address)"""
 
 
@@ -137,6 +140,7 @@ class MavlinkServer:
         self.longest_wait_s = 0.0
         """the longest the world waited for a setpoint [wall s]"""
         self._setpoint_arrived = asyncio.Event()
+        self._forwarded: dict[tuple[str, int], tuple[float, int]] = {}
         self._handlers: dict[str, Callable[[Any], None]] = {
             "COMMAND_LONG": self._command_long,
             "COMMAND_INT": self._command_int,
@@ -237,6 +241,9 @@ class MavlinkServer:
                 if not is_signed(msg):
                     continue  # allowed unsigned: no effect, and no telemetry for its sender
             good = True
+            if kind in FORWARDED:
+                self._forward(bytes(msg.get_msgbuf()), addr)
+                continue
             handler = self._handlers.get(kind)
             if handler is None:
                 continue
@@ -247,6 +254,26 @@ class MavlinkServer:
         if good:
             self._note_peer(addr)
         self._drain_messages()
+
+    def _forward(self, frame: bytes, addr: tuple[str, int]) -> None:
+        """A companion's state for the ground stations (as an autopilot routes it): to every other
+        peer, at most FORWARD_PER_S a second from one sender (a flood is dropped and counted)."""
+        now = time.monotonic()
+        window, count = self._forwarded.get(addr, (now, 0))
+        if now - window >= 1.0:
+            window, count = now, 0
+        if count >= FORWARD_PER_S:
+            self.stats["forward_dropped"] += 1
+            return
+        self._forwarded[addr] = (window, count + 1)
+        if len(self._forwarded) > MAX_PEERS * 4:
+            self._forwarded.clear()
+        if self.transport is None:
+            return
+        for peer in self.peers:
+            if peer != addr:
+                self.transport.sendto(frame, peer)
+        self.stats["forwarded"] += 1
 
     def _drop_unauthentic(self, msg: Any, kind: str, reason: str) -> None:
         """Count a frame that failed the signature check; say so once per reason (not per frame:

@@ -37,7 +37,7 @@ from . import supervisor
 from .errors import EXIT_CODES, Interrupted, LinkLost, MissionAbort
 from .guard import SetpointGuard
 from .health import HealthMonitor
-from .offboard import OffboardController, PositionTarget, Setpoint
+from .offboard import OffboardController, PositionTarget, Setpoint, Tick
 from .output import choose_output
 from .pacing import TickGrid
 from .prepare import ParamChanges, prepare_ardupilot, thrust_scale
@@ -49,6 +49,8 @@ from .thrust_scale import ThrustScaleEstimator
 __all__ = ["FlightOptions", "FlightResult", "Flight", "wall_timeout_s"]
 
 PRECISE_SLEEP_S = 0.0015
+DEBUG_PERIOD_S = 0.1
+"""vehicle seconds between the controller-state messages for the ground station (10 Hz)"""
 WATCHDOG_S = 0.02
 """wall seconds between the watchdog's checks"""
 STALLED_S = 0.05
@@ -151,6 +153,7 @@ class Flight:
         """wall-clock spacing of sent setpoints (bounded), for the jitter benchmark"""
         self._last_sent_wall = math.nan
         self._first_sent_t = self._last_sent_t = math.nan
+        self._debug_due = -math.inf
         self.failure: str | None = None
         self._breach: str | None = None
 
@@ -310,11 +313,24 @@ class Flight:
             self.recorder.row(state, tick, sent,
                               thrust.thrust_max_n if thrust else math.nan,
                               thrust.estimated_thrust_max_n if thrust else math.nan)
+            if tick is not None and t_next >= self._debug_due:
+                self._debug_due = t_next + DEBUG_PERIOD_S
+                self._send_debug(tick, t_next)
             health = self.health.sample(t_next, self.link.stats["received"], self.sent, self.link.rx_queue_depth,
                                         grid.late_ticks, self.link.rx_lag_max_s)
             if health is not None:
                 self.link.take_rx_lag_max()
                 self.recorder.health(health)
+
+    def _send_debug(self, tick: Tick, t: float) -> None:
+        """The force estimate, the commanded force and the tracking error to the ground station
+        (through the autopilot, which routes them), at most 10 times a vehicle second."""
+        ref = tick.reference.pos_ned_m
+        err = math.dist(self.link.state.pos_ned_m, ref)
+        vectors = {"F_est": tick.estimate_n, "F_cmd": tick.force_n}
+        values = {"err_m": err, "thr_scale": self.control.thrust.thrust_max_n if self.control else math.nan}
+        self.link.send_debug(t, {k: v for k, v in vectors.items() if all(math.isfinite(c) for c in v)},
+                             {k: v for k, v in values.items() if math.isfinite(v)})
 
     async def _until_tick(self, due_stamp: float, wake: float, precise_s: float) -> None:
         """Until the vehicle's newest stamp reaches ``due_stamp`` or the wall clock reaches ``wake``."""

@@ -155,6 +155,11 @@ class VehicleLink(abc.ABC):
         autopilot's own position control flies it."""
 
     @abc.abstractmethod
+    def send_debug(self, t_s: float, vectors: dict[str, Vec3], values: dict[str, float]) -> None:
+        """Controller state for the ground station: DEBUG_VECT per vector, NAMED_VALUE_FLOAT per value
+        (names of at most 10 characters; MAVProxy and QGroundControl show both)."""
+
+    @abc.abstractmethod
     async def get_param(self, name: str, timeout_s: float = 1.0, retries: int = 3) -> float | None:
         """The parameter's value, or None if the vehicle has no such parameter (no answer after
         ``retries`` tries of ``timeout_s``: autopilots do not answer for unknown names)."""

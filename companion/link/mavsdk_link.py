@@ -16,6 +16,7 @@ so it is encoded again with pymavlink for the log (same content, its own sequenc
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import math
 import time
@@ -301,6 +302,21 @@ class MavsdkLink(VehicleLink):
             self.traffic(self._log_mav.set_position_target_local_ned_encode(
                 fields["time_boot_ms"], self.state.sysid, 1, 1, 2048, x, y, z, vx, vy, vz, ax, ay, az,
                 float(yaw_rad), 0.0).pack(self._log_mav))
+
+    def send_debug(self, t_s: float, vectors: dict[str, Vec3], values: dict[str, float]) -> None:
+        t_us, t_ms = int(max(t_s, 0.0) * 1e6), int(max(t_s, 0.0) * 1e3) & 0xFFFFFFFF
+        messages = [("DEBUG_VECT", {"name": name[:10], "time_usec": t_us, "x": float(v[0]), "y": float(v[1]),
+                                    "z": float(v[2])}) for name, v in vectors.items()]
+        messages += [("NAMED_VALUE_FLOAT", {"time_boot_ms": t_ms, "name": name[:10], "value": float(x)})
+                     for name, x in values.items()]
+        for kind, fields in messages:
+            msg = MavlinkMessage(message_name=kind, system_id=245, component_id=190, target_system_id=0,
+                                 target_component_id=0, fields_json=json.dumps(fields))
+            asyncio.get_running_loop().create_task(self._direct_best_effort(msg))
+
+    async def _direct_best_effort(self, msg: MavlinkMessage) -> None:
+        with contextlib.suppress(Exception):
+            await self.direct.send_message(msg)
 
     def _queue_direct(self, msg: MavlinkMessage) -> None:
         if self._outbox.full():  # never queue stale setpoints: the newest one wins

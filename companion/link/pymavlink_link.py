@@ -511,6 +511,13 @@ class PymavlinkLink(VehicleLink):
             *(float(c) for c in (*pos_ned_m, *vel_ned_m_s, *accel_ned_m_s2)), float(yaw_rad), 0.0))
         self.stats["setpoints"] += 1
 
+    def send_debug(self, t_s: float, vectors: dict[str, Vec3], values: dict[str, float]) -> None:
+        t_us, t_ms = int(max(t_s, 0.0) * 1e6), int(max(t_s, 0.0) * 1e3) & 0xFFFFFFFF
+        for name, v in vectors.items():
+            self._send(self.mav.debug_vect_encode(name.encode()[:10], t_us, *(float(c) for c in v)))
+        for name, x in values.items():
+            self._send(self.mav.named_value_float_encode(t_ms, name.encode()[:10], float(x)))
+
     async def _param(self, name: str, send: Any, timeout_s: float = 1.0, retries: int = 3) -> float | None:
         loop = asyncio.get_running_loop()
         fut: asyncio.Future[float] = loop.create_future()

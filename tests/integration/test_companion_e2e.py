@@ -307,3 +307,30 @@ def test_the_square_keeps_its_clean_bounds_on_a_host_that_stalls_both_processes(
     report = s.stop()
     assert not any("offboard lost" in text for _, text in report["events"]), report["events"]
     assert not report["armed"]
+
+
+def test_the_ground_station_sees_the_force_estimate_live(sitl, companion, client):
+    """The companion streams its force estimate (DEBUG_VECT F_est) and tracking error (NAMED_VALUE_FLOAT
+    err_m) at most 10 times a vehicle second; the vehicle routes them to its other clients, as
+    PX4 and ArduPilot do to MAVProxy and QGroundControl. During hover45's attached weight the
+    estimate a ground station sees is the 6 N north force (within 0.5 N)."""
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
+    gcs = client(s.url, source_system=200)
+    gcs.wait("HEARTBEAT")
+    c = companion("missions/hover45.toml", s.url, *PAPER_OUTPUT)
+    c.wait_for("step 45 deg hover", timeout=120)
+    time.sleep(2.0)
+    seen: list = []
+    end = time.monotonic() + 5.0
+    while time.monotonic() < end:
+        m = gcs.recv(0.1)
+        if m is not None and m.get_type() in ("DEBUG_VECT", "NAMED_VALUE_FLOAT"):
+            seen.append(m)
+    code, out = c.finish()
+    assert code == 0, out
+    vects = [m for m in seen if m.get_type() == "DEBUG_VECT" and m.name == "F_est"]
+    errs = [m for m in seen if m.get_type() == "NAMED_VALUE_FLOAT" and m.name == "err_m"]
+    assert vects and errs, [m.get_type() for m in seen][:20]
+    span_s = (vects[-1].time_usec - vects[0].time_usec) * 1e-6
+    assert len(vects) <= 10.0 * span_s + 2, (len(vects), span_s)
+    assert abs(vects[-1].x - 6.0) < 0.5, vects[-1]
