@@ -57,7 +57,7 @@ def _fly(args: argparse.Namespace) -> int:
     opts = FlightOptions(mission_file=Path(args.mission),
                          connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
                          out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet, signing_key=key,
-                         connect_timeout_s=args.connect_timeout, output=args.output)
+                         connect_timeout_s=args.connect_timeout, output=args.output, take_over=args.take_over)
     try:
         flight = Flight(mission, opts)
     except OSError as exc:
@@ -135,6 +135,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                      help="what SET_ATTITUDE_TARGET carries: attitude (q, thrust, yaw-rate feed-forward; the "
                           "default), rates (body rates and thrust: the attitude loop closed here), attitude_rates "
                           "(everything, as the paper's inner loop takes it)")
+    fly.add_argument("--take-over", action="store_true",
+                     help="fly a vehicle that is already armed or flying, from where it is (no take-off); "
+                          "without it the companion refuses such a vehicle: another operator may be flying it")
     fly.add_argument("--no-plots", action="store_true")
     fly.add_argument("--quiet", action="store_true")
     add_signing_options(fly)

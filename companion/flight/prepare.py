@@ -47,19 +47,28 @@ class ParamChanges:
         return await self.set(name, float(int(have) | bits), why)
 
     async def restore(self) -> dict[str, float]:
-        """Put back every changed parameter; returns those that could not be (name -> original)."""
+        """Put back every changed parameter; returns those that could not be (name -> original).
+        Cancelled (a deadline), what was not yet put back stays in ``originals``: see :meth:`give_up`."""
         for name, original in reversed(list(self.originals.items())):
             try:
                 echoed = await self.link.set_param(name, original)
                 if math.isclose(echoed, original, rel_tol=1e-6, abs_tol=1e-9):
                     self.log(f"{name} put back to {original:g}")
+                    del self.originals[name]
                     continue
             except LinkError:
                 pass
+            del self.originals[name]
+            self.not_restored[name] = original
+            self.log(f"{name} could NOT be put back to {original:g}: set it by hand")
+        return dict(self.not_restored)
+
+    def give_up(self) -> None:
+        """The link is gone: whatever was not put back is listed as such."""
+        for name, original in self.originals.items():
             self.not_restored[name] = original
             self.log(f"{name} could NOT be put back to {original:g}: set it by hand")
         self.originals.clear()
-        return dict(self.not_restored)
 
 
 async def thrust_scale(link: VehicleLink, weight_n: float, configured_n: float, hover_throttle: float

@@ -33,7 +33,7 @@ from companion.link import LinkError, VehicleLink, open_link
 from companion.mavlink.signing import fingerprint
 from companion.mission import Mission
 
-from . import supervisor
+from . import preflight, supervisor
 from .errors import EXIT_CODES, Interrupted, LinkLost, MissionAbort
 from .guard import SetpointGuard
 from .health import HealthMonitor
@@ -74,6 +74,8 @@ class FlightOptions:
     """what SET_ATTITUDE_TARGET carries: auto | attitude | rates | attitude_rates (output.py)"""
     mission_file: Path | None = None
     """copied into the flight record"""
+    take_over: bool = False
+    """fly a vehicle that is already armed or flying, from where it is (its take-off steps skipped)"""
 
 
 @dataclass
@@ -154,6 +156,10 @@ class Flight:
         self._last_sent_wall = math.nan
         self._first_sent_t = self._last_sent_t = math.nan
         self._debug_due = -math.inf
+        self.taking_over = False
+        self.ours = False
+        """the companion armed the vehicle or was told to take it over: only then does it recover it"""
+        self.preflight: dict = {}
         self.failure: str | None = None
         self._breach: str | None = None
 
@@ -213,6 +219,7 @@ class Flight:
     async def _restore_params(self) -> None:
         with contextlib.suppress(Exception):
             await asyncio.wait_for(self.params.restore(), 10.0)
+        self.params.give_up()
 
     def _in_background(self, command: Awaitable[None]) -> None:
         async def best_effort() -> None:
@@ -424,16 +431,28 @@ class Flight:
             self.log(f"connected: {link.state.autopilot} system {link.state.sysid}, mode {link.state.mode}")
             self.output = choose_output(self.opt.output, link.state.autopilot)
             self.log(f"setpoints: {self.output.mode} (type_mask {self.output.type_mask})")
+            await self._check_not_someone_elses()
             await self._make_controller()
+            self.preflight = await self._preflight()
             self.recorder.metadata(self._metadata(), self.opt.mission_file)
             for i, step in enumerate(m.steps):
                 self.recorder.begin(i, step.name, step.action, link.state.t)
+                if self.taking_over and step.action == "takeoff":
+                    self.skipped.append(f"{step.name}: taken over in the air")
+                    self.log(f"step {step.name}: skipped (taken over in the air)")
+                    continue
                 self.log(f"step {step.name}")
                 await run_step(self, step)
             self.recorder.end(link.state.t)
             result = ("completed", f"mission {m.name} completed")
         except Interrupted:
             self.recorder.end(link.state.t, False, "interrupted")
+            if not self.ours:
+                self.log("interrupted before the companion flew the vehicle")
+                self.engaged = False
+                await self._restore_params()
+                self.finished.set()
+                return ("interrupted", "interrupted by the operator before the flight")
             self.log("interrupted: holding, then landing")
             await self._recover(supervisor.recovery(self.expect_offboard, link.state.offboard, False, link.state.mode,
                                                     link.state.autopilot) if self.expect_offboard else "hold_then_land")
@@ -443,7 +462,9 @@ class Flight:
             self.recorder.end(link.state.t, False, str(exc))
             self.log(f"aborted: {exc}")
             self.failure = str(exc)
-            if link.state.sysid and time.monotonic() - link.state.wall_last < m.safety.link_lost_s:
+            if not self.ours:
+                self.log("the companion never flew this vehicle: it leaves it as it is")
+            elif link.state.sysid and time.monotonic() - link.state.wall_last < m.safety.link_lost_s:
                 await self._recover(supervisor.recovery(
                     self.expect_offboard, link.state.offboard, supervisor.outage_recent(self.watch, time.monotonic()),
                     link.state.mode, link.state.autopilot))
@@ -513,6 +534,7 @@ class Flight:
         st = self.link.state
         await self.link.set_arming_mode()
         await self.until(lambda: st.armable is not False, timeout_s, "pre-arm checks to pass")
+        self.ours = True  # from the arming mode on, this flight answers for the vehicle
         for attempt in range(4):
             try:
                 await self.link.arm()
@@ -523,11 +545,43 @@ class Flight:
                 self.log(f"{exc}; retrying")
                 await self.sleep_v(1.0)
 
+    async def _check_not_someone_elses(self) -> None:
+        """An armed or flying vehicle is someone's: the companion does not take it without being told."""
+        st = self.link.state
+        flying = st.armed or st.landed_state == 2  # MAV_LANDED_STATE_IN_AIR
+        if flying and not self.opt.take_over:
+            raise MissionAbort(f"the vehicle is already {'armed' if st.armed else 'flying'} (mode {st.mode}): "
+                               "another operator may be flying it. To fly it from where it is, start again with "
+                               "--take-over")
+        if flying:
+            self.taking_over = self.ours = True
+            self.log(f"taking over an armed vehicle in {st.mode}: its take-off steps are skipped")
+
+    async def _preflight(self) -> dict:
+        """Read the autopilot's failsafe settings and print them, with warnings (preflight.py)."""
+        st = self.link.state
+        values: dict[str, float | None] = {}
+        await asyncio.sleep(0.2 / max(self.link.clock.rate, 1e-3))  # the parameter list asked for at connection
+        for check in preflight.checks_for(st.autopilot):
+            if check.name in st.params:
+                values[check.name] = st.params[check.name]
+            elif self.link.params_complete:
+                values[check.name] = None  # the whole list came, without it
+            else:
+                values[check.name] = await self.link.get_param(check.name, 0.3, 2)
+        lines, warnings = preflight.report(st.autopilot, values)
+        self.log(f"pre-flight: {st.autopilot} failsafe settings")
+        for line in lines:
+            self.log(line)
+        for w in warnings:
+            self.log(f"WARNING: {w}")
+        return {"values": values, "warnings": warnings}
+
     def _metadata(self) -> dict:
         from .metadata import flight_metadata
 
         return flight_metadata(self.mission, self.controller_name, self.output.mode, self.rate_hz, self.link,
-                               self.opt.backend, self.opt.connect)
+                               self.opt.backend, self.opt.connect) | {"preflight": self.preflight}
 
     # --- summary -------------------------------------------------------------------------
 

@@ -62,6 +62,8 @@ class VehicleLink(abc.ABC):
             self.clock.observe(admitted.t_s, wall)
             self.telemetry_event.set()
 
+    params_complete: bool = False
+    """the autopilot's whole parameter list has arrived (PARAM_VALUE's count reached)"""
     progress: Callable[[str], None] | None = None
     """where connection progress is reported (the flight's log)"""
 

@@ -318,6 +318,8 @@ class PymavlinkLink(VehicleLink):
                 return
             value = decode_value(msg.param_value, msg.param_type, bytewise=self.flavour is PX4)
             st.params[name] = value
+            if not self.params_complete and 0 < msg.param_count <= len(st.params):
+                self.params_complete = True
             self._param_types[name] = msg.param_type
             fut = self._params.get(name)
             if fut is not None and not fut.done():
