@@ -46,6 +46,34 @@ def propagate(pos_ned_m: Vec3, vel_ned_m_s: Vec3, specific_force_ned_m_s2: Vec3 
     return pos, vel
 
 
+class VelocityDifferentiator:
+    """Specific force ``a - g e3`` [m/s^2, NED] from the velocity telemetry, when no IMU reaches us:
+    a backward difference between velocity samples (at their own stamps, each used once), low-passed
+    with ``time_constant_s`` (0.15 s: position telemetry at 60 Hz, differenced twice on the way, is noisy). None
+    until two samples have arrived."""
+
+    def __init__(self, time_constant_s: float = 0.15) -> None:
+        self.time_constant_s = time_constant_s
+        self._last: tuple[float, Vec3] | None = None
+        self._accel: Vec3 | None = None
+
+    def update(self, vel_ned_m_s: Vec3, t_s: float, gravity_m_s2: float) -> Vec3 | None:
+        last = self._last
+        if last is None or t_s > last[0]:
+            if last is not None and t_s - last[0] < 1.0:
+                dt = t_s - last[0]
+                raw = scale(1.0 / dt, (vel_ned_m_s[0] - last[1][0], vel_ned_m_s[1] - last[1][1],
+                                       vel_ned_m_s[2] - last[1][2]))
+                k = 1.0 - math.exp(-dt / self.time_constant_s)
+                a0 = self._accel if self._accel is not None else raw
+                self._accel = add(a0, scale(k, (raw[0] - a0[0], raw[1] - a0[1], raw[2] - a0[2])))
+            self._last = (t_s, vel_ned_m_s)
+        if self._accel is None:
+            return None
+        a = self._accel
+        return (a[0], a[1], a[2] - gravity_m_s2)
+
+
 class Setpoint(NamedTuple):
     """What goes on the wire: attitude (body to NED), body rates, normalised thrust."""
 
@@ -95,6 +123,8 @@ class OffboardController:
     period_s: float = 0.01
 
     def __post_init__(self) -> None:
+        self.differentiator = VelocityDifferentiator()
+        self.acceleration_source = ""
         self.passthrough = self.controller == AUTOPILOT
         self.loop = PositionLoop.create("pid" if self.passthrough else self.controller, self.vehicle, self.gains,
                                         self.reference)
@@ -149,7 +179,12 @@ class OffboardController:
             hover = AttitudeSetpoint(quat.from_yaw(float(ref.yaw_rad)), (0.0, 0.0, 0.0), math.nan)
             return Tick(t, ref, hover, _NAN3, _NAN3, target, None)
         sf = state.specific_force_body_m_s2 if self.gains.observer_uses_imu else None
-        sf_ned = quat.rotate(state.q, sf) if sf is not None else None
+        if sf is not None:
+            sf_ned: Vec3 | None = quat.rotate(state.q, sf)
+            self.acceleration_source = "imu"
+        else:  # no IMU: differentiated velocity (the paper's own path), once it has two samples
+            sf_ned = self.differentiator.update(state.vel_ned_m_s, state.t_pos, self.vehicle.gravity_m_s2)
+            self.acceleration_source = "differentiated velocity"
         pos, vel = propagate(state.pos_ned_m, state.vel_ned_m_s, sf_ned, self.vehicle.gravity_m_s2,
                              min(max(t - state.t_pos, 0.0), MAX_PROPAGATION_S))
         meas = PositionMeasurement(pos, vel, state.q, sf_ned)

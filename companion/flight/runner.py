@@ -514,7 +514,7 @@ class Flight:
         gains = m.gains
         if self.link.state.specific_force_body_m_s2 is None:
             gains = dataclasses.replace(gains, observer_uses_imu=False)
-            self.log("no HIGHRES_IMU: the force observer falls back to differentiated velocity")
+            self.log("no IMU (HIGHRES_IMU or SCALED_IMU): the force observer uses differentiated velocity")
         # the controller clamps to the safety limits itself (the guard is the last line, and a
         # rejected setpoint is a missing one): tilt 1 deg and rate 1% inside the guard's bounds
         reference = dataclasses.replace(
@@ -614,6 +614,7 @@ class Flight:
             "cpu_s": time.process_time() - self._cpu0, "wall_s": time.monotonic() - self._wall0,
             "link_stats": dict(getattr(self.link, "stats", {})),
             "older_samples": self.link.state.older_samples,
+            "acceleration_source": self.control.acceleration_source if self.control else None,
             "skipped_steps": list(self.skipped),
             "params_not_restored": dict(self.params.not_restored),
             "record": "complete" if self.recorder.failed is None else f"stopped: {self.recorder.failed}",

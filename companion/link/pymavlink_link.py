@@ -92,6 +92,7 @@ class PymavlinkLink(VehicleLink):
         """one command in flight at a time: an ACK names only the command id, not the request"""
         self._params: dict[str, asyncio.Future[float]] = {}
         self._param_types: dict[str, int] = {}
+        self._highres_seen = False
         self._ftp_reply: asyncio.Future[ftp.Packet] | None = None
         self._ftp_lock = asyncio.Lock()
         self.event_error = ""
@@ -263,9 +264,16 @@ class PymavlinkLink(VehicleLink):
                 self._observe(a, wall)
         elif kind == "HIGHRES_IMU":
             if msg.fields_updated & 0x7 == 0x7:
+                self._highres_seen = True
                 a = self._admit(msg.time_usec * 1e-6, wall)
                 if a is not None and self._valid(st.set_imu((msg.xacc, msg.yacc, msg.zacc), a.t_s, wall)):
                     self._observe(a, wall)
+        elif kind == "SCALED_IMU" and not self._highres_seen:
+            # an autopilot without HIGHRES_IMU: the first IMU's accelerometer, in milli-g
+            a = self._admit(msg.time_boot_ms * 1e-3, wall)
+            g = 9.80665e-3
+            if a is not None and self._valid(st.set_imu((msg.xacc * g, msg.yacc * g, msg.zacc * g), a.t_s, wall)):
+                self._observe(a, wall)
         elif kind == "EXTENDED_SYS_STATE":
             st.landed_state = msg.landed_state
         elif kind == "SYS_STATUS":
@@ -368,6 +376,11 @@ class PymavlinkLink(VehicleLink):
         # every parameter, for the flight record's snapshot (they arrive while the mission flies)
         self._send(self.mav.param_request_list_encode(self.state.sysid, self.state.compid))
         await self._wait_navigation(timeout_s)
+        if not self._highres_seen:  # an autopilot without HIGHRES_IMU: its SCALED_IMU, if it has one
+            await self.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_SCALED_IMU,
+                                    1e6 / STREAM_RATES_HZ[mavlink.MAVLINK_MSG_ID_HIGHRES_IMU], require_ack=False,
+                                    attempts=2)
+            await asyncio.sleep(0.3)
 
     async def fetch_file(self, path: str, timeout_s: float = 1.0, max_bytes: int = 4 << 20) -> bytes:
         """A file from the autopilot over MAVLink FTP (LinkError if it cannot be read)."""

@@ -21,8 +21,12 @@ __all__ = ["Mitm"]
 
 
 class Mitm:
-    def __init__(self, vehicle: tuple[str, int], sysid: int = 1, compid: int = 1) -> None:
+    def __init__(self, vehicle: tuple[str, int], sysid: int = 1, compid: int = 1,
+                 drop: frozenset[str] = frozenset()) -> None:
         self.vehicle = vehicle
+        self.drop = drop
+        """message types filtered out on the way to the client (a router configured to drop them)"""
+        self.dropped = 0
         self.front = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.front.bind(("127.0.0.1", 0))
         self.back = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -59,18 +63,22 @@ class Mitm:
                     self.client = addr
                     self.back.sendto(data, self.vehicle)
                 elif self.client is not None:
-                    self._note(data)
+                    if self._note(data) & self.drop:
+                        self.dropped += 1
+                        continue
                     with self._lock:  # a forged frame is never sent before the genuine one it copies
                         self.front.sendto(data, self.client)
                     self.down += 1
 
-    def _note(self, data: bytes) -> None:
+    def _note(self, data: bytes) -> set[str]:
+        """Remember the newest of each kind; the kinds in this datagram."""
         try:
             msgs = self._parser.parse_buffer(data) or []
         except Exception:
-            return
+            return set()
         for m in msgs:
             self._latest[m.get_type()] = m
+        return {m.get_type() for m in msgs}
 
     def latest(self, kind: str, timeout: float = 5.0) -> Any:
         end = time.monotonic() + timeout
