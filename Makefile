@@ -6,15 +6,20 @@ OUT ?= results
 
 .PHONY: setup demo experiments test lint bench fuzz clean
 
-$(VENV)/.installed: pyproject.toml
+# the runtime alone for the demo (pip install . : NumPy, Matplotlib, pymavlink); the test tools on top for make test
+$(VENV)/.runtime: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e .
+	touch $@
+
+$(VENV)/.installed: $(VENV)/.runtime
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $@
 
 setup: $(VENV)/.installed
 
-demo: setup
+demo: $(VENV)/.runtime
 	$(PY) -m companion demo --out flights
 
 experiments: setup

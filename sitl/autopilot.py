@@ -156,6 +156,9 @@ class AutopilotParams:
     """ArduPilot GUID_TIMEOUT: attitude targets older than this are no longer flown; it holds"""
     angle_max_deg: float = 30.0
     """ArduPilot ANGLE_MAX / 100: the tilt an attitude target is clipped to in GUIDED"""
+    position_after_s: float | None = None
+    """vehicle seconds after boot before the estimator has an origin (no LOCAL_POSITION_NED, no arming);
+    None: the flavour's own (ArduCopter ~40 s, seen on its SITL; PX4 SIH about 1 s)"""
     offboard_loss_hold: bool = False
     """offboard loss: hold for ``failsafe_hold_s``, then land (PX4 with RC and COM_OBL_RC_ACT hold);
     False: descend and land at once (PX4 v1.16 without RC, the default)"""
@@ -205,7 +208,8 @@ class Autopilot:
         self.pos_div = int(round(sc.plant_rate_hz / sc.position_rate_hz))
         self.pos_dt = self.pos_div * self.dt
         self.ground_z = sc.airframe.ground_z_m
-        self.mode = Mode.HOLD
+        self.mode = Mode.MANUAL if self.params.flavour == "ardupilot" else Mode.HOLD
+        """ArduCopter boots in STABILIZE, PX4 in HOLD"""
         self.user_mode = Mode.HOLD
         """the last mode a command chose (PX4 returns to it after a disarm)"""
         self.armed = False
@@ -245,6 +249,13 @@ class Autopilot:
     @property
     def ardupilot(self) -> bool:
         return self.params.flavour == "ardupilot"
+
+    @property
+    def has_position(self) -> bool:
+        after = self.params.position_after_s
+        if after is None:
+            after = 40.0 if self.ardupilot else 0.0
+        return self.t >= after
 
     @property
     def follows_stream(self) -> bool:
@@ -309,7 +320,7 @@ class Autopilot:
                 return CommandResult(MavResult.ACCEPTED)
             if not self.landed:
                 return self._deny("Arming denied: not on the ground")
-            if self.t < 1.0:
+            if self.t < 1.0 or not self.has_position:
                 return self._deny("Arming denied: estimator settling", MavResult.TEMPORARILY_REJECTED)
             if self.mode == Mode.OFFBOARD and not self.setpoint_stream_active(None):
                 return self._deny("Arming denied: No offboard signal", MavResult.TEMPORARILY_REJECTED)

@@ -24,11 +24,14 @@ from typing import Any, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink import ftp
+from companion.mavlink.events import CATALOGUE_PATH, encode_event_frame
 from companion.mavlink.signing import SignatureCheck, enable_signing, is_signed
 from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
 
 from .autopilot import Autopilot, MavResult, Severity
+from .events import catalogue, event_id
 from .parameters import ParamTable, build_parameters
 from .percentiles import percentiles_ms
 from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
@@ -141,6 +144,8 @@ class MavlinkServer:
         """the longest the world waited for a setpoint [wall s]"""
         self._setpoint_arrived = asyncio.Event()
         self._forwarded: dict[tuple[str, int], tuple[float, int]] = {}
+        self._event_seq = 0
+        self._catalogue = catalogue()
         self._handlers: dict[str, Callable[[Any], None]] = {
             "COMMAND_LONG": self._command_long,
             "COMMAND_INT": self._command_int,
@@ -153,6 +158,7 @@ class MavlinkServer:
             "TIMESYNC": self._timesync,
             "REQUEST_DATA_STREAM": self._request_data_stream,
             "MISSION_REQUEST_LIST": self._mission_request_list,
+            "FILE_TRANSFER_PROTOCOL": self._file_transfer,
         }
 
     # --- sending -------------------------------------------------------------------------
@@ -172,7 +178,42 @@ class MavlinkServer:
         msgs = self.ap.messages
         while msgs:
             sev, text = msgs.popleft()
-            self.say(int(sev), text)
+            ev = event_id(text) if not self.ap.ardupilot and self.signature_check is None else None
+            if ev is None:
+                self.say(int(sev), text)
+            else:  # PX4 v1.16 reports these as EVENTs (readable with the catalogue it serves over FTP)
+                self._event_seq += 1
+                self._send_raw(encode_event_frame(self._event_seq, self.config.sysid, self.config.compid, ev,
+                                                  self.telemetry.time_boot_ms, self._event_seq, int(sev)))
+
+    def _send_raw(self, frame: bytes) -> None:
+        if self.transport is None:
+            return
+        for addr in self.peers:
+            self.transport.sendto(frame, addr)
+        self.stats["sent"] += 1
+
+    def _file_transfer(self, msg: Any) -> None:
+        """MAVLink FTP, read-only and one file: the event catalogue (what PX4 serves at this path)."""
+        if msg.target_system not in (0, self.config.sysid):
+            return
+        req = ftp.decode(bytes(msg.payload))
+        blob = self._catalogue
+        if req.opcode == ftp.OPEN_FILE_RO:
+            path = req.data.split(b"\x00", 1)[0].decode("ascii", "replace")
+            ok = path == CATALOGUE_PATH and not self.ap.ardupilot
+            reply = ftp.encode(req.seq + 1, 1, ftp.ACK if ok else ftp.NAK, 0,
+                               len(blob).to_bytes(4, "little") if ok else bytes([ftp.ERR_FAIL]))
+        elif req.opcode == ftp.READ_FILE:
+            chunk = blob[req.offset:req.offset + min(req.size or ftp.DATA_MAX, ftp.DATA_MAX)]
+            reply = (ftp.encode(req.seq + 1, req.session, ftp.ACK, req.offset, chunk) if chunk else
+                     ftp.encode(req.seq + 1, req.session, ftp.NAK, req.offset, bytes([ftp.ERR_EOF])))
+        elif req.opcode in (ftp.TERMINATE_SESSION, ftp.RESET_SESSIONS):
+            reply = ftp.encode(req.seq + 1, req.session, ftp.ACK)
+        else:
+            reply = ftp.encode(req.seq + 1, req.session, ftp.NAK, 0, bytes([ftp.ERR_FAIL]))
+        self.send(self.mav.file_transfer_protocol_encode(0, msg.get_srcSystem(), msg.get_srcComponent(),
+                                                         list(reply)))
 
     def _warn_once(self, key: str, text: str, every_s: float = 5.0) -> None:
         """A STATUSTEXT for a rejected input, at most once per ``every_s`` (simulated) per kind."""

@@ -132,7 +132,7 @@ class Telemetry:
 
     def armable(self) -> bool:
         ap = self.ap
-        return ap.landed and ap.t >= 1.0
+        return ap.landed and ap.t >= 1.0 and ap.has_position
 
     def sys_status(self) -> mavlink.MAVLink_message:
         health = SYS_STATUS_SENSORS | (PREARM_CHECK if self.armable() or self.ap.armed else 0)
@@ -158,8 +158,9 @@ class Telemetry:
         return self.mav.attitude_encode(self.time_boot_ms, _f(r), _f(p), _f(y), _f(w[0]), _f(w[1]), _f(w[2]))
 
     def local_position_ned(self) -> mavlink.MAVLink_message | None:
-        """None (not sent) while the tracking system is silent: a stale position must not look fresh."""
-        if self.ap.vehicle.position_age_s > POSITION_STALE_S:
+        """None (not sent) while the tracking system is silent: a stale position must not look fresh,
+        and while the estimator has no origin (ArduCopter: ~40 s after boot)."""
+        if self.ap.vehicle.position_age_s > POSITION_STALE_S or not self.ap.has_position:
             return None
         ms = self.ap.vehicle.tracked
         p, vel = ms.pos_ned_m, ms.vel_ned_m_s

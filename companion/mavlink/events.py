@@ -19,7 +19,8 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["MSG_ID_EVENT", "Event", "parse_event", "EventCatalogue", "SEVERITY_OF_LEVEL"]
+__all__ = ["MSG_ID_EVENT", "Event", "parse_event", "EventCatalogue", "SEVERITY_OF_LEVEL", "EVENT_CRC_EXTRA",
+           "encode_event_frame", "catalogue_json", "CATALOGUE_PATH"]
 
 MSG_ID_EVENT = 410
 _HEADER = struct.Struct("<IIHBBB")  # id, event_time_boot_ms, sequence, destination comp, destination sys, log_levels
@@ -29,6 +30,50 @@ SEVERITY_OF_LEVEL = {0: 0, 1: 1, 2: 2, 3: 3, 4: 4, 5: 5, 6: 6, 7: 7}
 """libevents' external log levels are MAV_SEVERITY's numbers (0 emergency .. 7 debug)"""
 _TAG = re.compile(r"</?[a-zA-Z]+[^>]*>")
 _PLACEHOLDER = re.compile(r"\{(\d+)(?::([^}]*))?\}")
+
+
+CATALOGUE_PATH = "/etc/extras/all_events.json.xz"
+"""where PX4 serves its event catalogue over MAVLink FTP"""
+
+
+def _crc_extra() -> int:
+    """MAVLink's CRC_EXTRA of EVENT, from its definition in common.xml (fields in wire order)."""
+    from pymavlink.generator.mavcrc import x25crc
+
+    crc = x25crc(b"EVENT ")
+    for ctype, name, length in (("uint32_t", "id", 0), ("uint32_t", "event_time_boot_ms", 0),
+                                ("uint16_t", "sequence", 0), ("uint8_t", "destination_component", 0),
+                                ("uint8_t", "destination_system", 0), ("uint8_t", "log_levels", 0),
+                                ("uint8_t", "arguments", 40)):
+        crc.accumulate_str(f"{ctype} ")
+        crc.accumulate_str(f"{name} ")
+        if length:
+            crc.accumulate([length])
+    return (crc.crc & 0xFF) ^ (crc.crc >> 8)
+
+
+EVENT_CRC_EXTRA = _crc_extra()
+
+
+def encode_event_frame(seq: int, sysid: int, compid: int, event_id: int, time_boot_ms: int, sequence: int,
+                       severity: int, arguments: bytes = b"") -> bytes:
+    """An EVENT as a MAVLink 2 frame (trailing zeros trimmed, as MAVLink 2 does), unsigned."""
+    from pymavlink.generator.mavcrc import x25crc
+
+    payload = _HEADER.pack(event_id, time_boot_ms & 0xFFFFFFFF, sequence & 0xFFFF, 0, 0, severity & 0x0F)
+    payload = (payload + arguments[:40].ljust(40, b"\x00")).rstrip(b"\x00") or b"\x00"
+    header = bytes([0xFD, len(payload), 0, 0, seq & 0xFF, sysid, compid]) + MSG_ID_EVENT.to_bytes(3, "little")
+    crc = x25crc(header[1:] + payload)
+    crc.accumulate([EVENT_CRC_EXTRA])
+    return header + payload + crc.crc.to_bytes(2, "little")
+
+
+def catalogue_json(component_namespace: str, events: dict[int, tuple[str, str]]) -> bytes:
+    """A libevents catalogue (xz-compressed JSON) for component 1: sub-id -> (name, message)."""
+    data = {"version": 2, "components": {"1": {"namespace": component_namespace, "event_groups": {
+        "default": {"events": {str(sub): {"name": name, "message": message}
+                               for sub, (name, message) in events.items()}}}}}}
+    return lzma.compress(json.dumps(data).encode())
 
 
 @dataclass(frozen=True)

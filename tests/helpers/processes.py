@@ -18,7 +18,11 @@ from pathlib import Path
 
 from pymavlink import mavutil
 
+from companion.mavlink.events import EventCatalogue, parse_event
 from companion.vehicle_process import VehicleProcess
+from sitl.events import catalogue
+
+_CATALOGUE = EventCatalogue.from_bytes(catalogue())
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -133,6 +137,11 @@ class Client:
             self.seen[kind] = msg
             if kind == "STATUSTEXT":
                 self.texts.append(msg.text)
+            elif kind == "UNKNOWN_410":  # an EVENT (PX4, and the bundled vehicle's px4 flavour)
+                raw = bytes(msg.get_msgbuf())
+                event = parse_event(raw[10:10 + raw[1]])
+                if event is not None:
+                    self.texts.append(_CATALOGUE.text(event))
         return msg
 
     def wait(self, kind: str | tuple[str, ...], cond=lambda m: True, timeout: float = 10.0):
@@ -153,11 +162,15 @@ class Client:
         return newest if newest is not None else self.wait(kind, timeout=timeout)
 
     def text(self, fragment: str, timeout: float = 10.0) -> str:
-        """A STATUSTEXT containing ``fragment``, already received or arriving within ``timeout``."""
-        for t in self.texts:
-            if fragment in t:
-                return t
-        return self.wait("STATUSTEXT", lambda m: fragment in m.text, timeout).text
+        """A STATUSTEXT or EVENT text containing ``fragment``, already received or arriving within ``timeout``."""
+        end = time.monotonic() + timeout
+        while True:
+            for t in self.texts:
+                if fragment in t:
+                    return t
+            if time.monotonic() > end:
+                raise AssertionError(f"no text with {fragment!r} within {timeout} s: {self.texts[-10:]}")
+            self.recv(0.1)
 
     def command(self, command: int, *params: float, timeout: float = 5.0) -> int:
         p = list(params) + [0.0] * (7 - len(params))

@@ -140,7 +140,7 @@ def test_a_mode_change_ends_the_failsafe():
 
 
 def guided_airborne(**params):
-    ap = make(flavour="ardupilot", **params)
+    ap = make(flavour="ardupilot", position_after_s=0.0, **params)
     assert ap.command(22, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.DENIED  # not armed
     ap.command(400, (1,))
     assert ap.command(22, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.DENIED  # not GUIDED

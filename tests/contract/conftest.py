@@ -1,0 +1,69 @@
+"""One contract, two implementations: each assertion runs against the bundled vehicle's flavour and
+against the real firmware (skipped, with the reason, where no build is found). Where the bundled
+vehicle differs from the firmware, the bundled vehicle is what changes."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import pytest
+from pymavlink import mavutil
+
+from companion.vehicle_process import VehicleProcess
+from helpers.processes import ROOT, child_env
+from sitl.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4
+
+SPEED = 4.0
+
+
+@dataclass
+class Target:
+    name: str
+    url: str
+    """pymavlink connection string"""
+    sysid: int = 1
+    speed: float = SPEED
+
+    def connect(self, source_system: int = 250) -> mavutil.mavfile:
+        m = mavutil.mavlink_connection(self.url, source_system=source_system, source_component=190)
+        m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        return m
+
+
+@pytest.fixture(params=["bundled", "firmware"])
+def px4(request) -> Iterator[Target]:
+    if request.param == "bundled":
+        v = VehicleProcess("--flavour", "px4", speedup=SPEED, env=child_env(), cwd=ROOT)
+        yield Target("bundled px4", f"udpout:{v.url}")
+        v.stop()
+        return
+    build, why = find_px4()
+    if build is None:
+        pytest.skip(why)
+    with Px4Sih(build, speed=SPEED) as p:
+        yield Target("PX4 v1.16 SIH", f"udpin:127.0.0.1:{p.api_port}", sysid=p.sysid)
+
+
+@pytest.fixture(params=["bundled", "firmware"])
+def copter(request) -> Iterator[Target]:
+    if request.param == "bundled":
+        v = VehicleProcess("--flavour", "ardupilot", speedup=SPEED, env=child_env(), cwd=ROOT)
+        yield Target("bundled ardupilot", f"udpout:{v.url}")
+        v.stop()
+        return
+    binary, why = find_arducopter()
+    if binary is None:
+        pytest.skip(why)
+    with ArduCopterSitl(binary, speedup=SPEED) as a:
+        yield Target("ArduCopter SITL", f"tcp:127.0.0.1:{a.tcp_port}")
+
+
+def wait(m: mavutil.mavfile, kind: str, cond=lambda msg: True, timeout: float = 10.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        msg = m.recv_match(type=kind, blocking=True, timeout=0.2)
+        if msg is not None and cond(msg):
+            return msg
+    raise AssertionError(f"no {kind} within {timeout} s")
