@@ -1,11 +1,15 @@
 """Mission files in TOML: what the companion flies, checked completely before anything arms.
 
-A mission file names the controller and its gains, the vehicle model, and a list of steps::
+A mission file names the controller and its gains, the vehicle model, where it may fly, and a
+list of steps::
 
-    name = "hover45"
+    name = "hover45"              # letters, digits, - _ . : it names the flight record's folder
     [controller]
     position = "ism_do"           # pid | aibc | pd_do | ism_do
     rate_hz = 100
+    [safety.volume]               # around home, the take-off point (defaults: cylinder 50 m, 30 m high)
+    max_distance_m = 10
+    max_altitude_m = 5
     [[steps]]
     action = "takeoff"            # the autopilot's own take-off
     altitude_m = 1.5
@@ -20,108 +24,81 @@ A mission file names the controller and its gains, the vehicle model, and a list
 
 Actions: ``takeoff``, ``offboard``, ``hold``, ``goto`` (waypoints through the velocity-limited
 reference), ``set_param`` (e.g. the simulated vehicle's suspended weight, ``SIM_FORCE_X``),
-``wait``, ``land``. Errors name the file, the line, the key and what was expected.
+``wait``, ``land``. A ``set_param`` step names its parameter with ``param``.
 
-A ``set_param`` step names its parameter with ``param`` (``param = "SIM_FORCE_X"``).
-QGroundControl ``.plan`` files are imported by :func:`load_plan`.
+:func:`load_mission` is the one way in, for ``companion check`` and ``companion fly`` alike: the
+file is read within bounds (size, nesting, encoding: :func:`companion.config.read_text`), built into
+the dataclasses, then checked whole (:func:`.validate.validate`: names, counts, the envelope, the
+safety volume, the order of the steps). Every refusal is a :class:`ConfigError` naming the file,
+the line, the key and what was expected. QGroundControl ``.plan`` files go to :func:`.plan.load_plan`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from companion.config import ConfigError, load_dataclass, load_toml, locate
 
+from .envelope import MAX_FILE_BYTES, MAX_STEPS, MAX_WAYPOINTS, Problem, safe_component
 from .model import ACTIONS, ALLOWED, REQUIRED, Mission, Step
+from .validate import validate
 
 __all__ = ["load_mission"]
 
 
-def _step_from_table(raw: dict, index: int, path: Path, text: str) -> Step:
-    key = f"steps[{index}]"
-
-    def fail(field_name: str, reason: str) -> ConfigError:
-        kp = f"{key}.{field_name}" if field_name else key
-        return ConfigError(path, locate(text, kp), kp, reason)
-
-    action = raw.get("action")
-    if action not in ACTIONS:
-        raise fail("action", f"expected one of {', '.join(ACTIONS)}, got {action!r}")
-    allowed = set(ALLOWED[action]) | {"action", "name"}
-    for k in raw:
-        if k not in allowed:
-            raise fail(k, f"not a key of a {action!r} step; expected one of: {', '.join(sorted(allowed))}")
-    for k in REQUIRED[action]:
-        if k not in raw:
-            raise fail("action", f"a {action!r} step needs {k!r}")
-    step = load_dataclass(Step, raw, path, text, key)
-    if not step.name:
-        step = _replace(step, name=f"{index + 1}: {action}")
-    _check_step(step, fail)
-    return step
-
-
-def _replace(step: Step, **changes: object) -> Step:
-    import dataclasses
-
-    return dataclasses.replace(step, **changes)  # type: ignore[arg-type]
-
-
-def _check_step(s: Step, fail) -> None:  # type: ignore[no-untyped-def]
-    if s.action == "takeoff" and not 0.3 <= s.altitude_m <= 100.0:
-        raise fail("altitude_m", f"expected 0.3..100 m, got {s.altitude_m}")
-    if s.action in ("hold", "wait") and not 0.0 < s.duration_s <= 3600.0:
-        raise fail("duration_s", f"expected a duration in (0, 3600] s, got {s.duration_s}")
-    if s.action == "goto":
-        if not s.waypoints:
-            raise fail("waypoints", "expected at least one [north, east, down] waypoint")
-        for i, wp in enumerate(s.waypoints):
-            if wp[2] > 0.0:
-                raise fail(f"waypoints[{i}]", f"down = {wp[2]} m is below the ground (NED: up is negative)")
-        if s.speed_m_s is not None and not 0.1 <= s.speed_m_s <= 10.0:
-            raise fail("speed_m_s", f"expected 0.1..10 m/s, got {s.speed_m_s}")
-    if s.position_ned_m is not None and s.position_ned_m[2] > 0.0:
-        raise fail("position_ned_m", f"down = {s.position_ned_m[2]} m is below the ground (NED: up is negative)")
-    if s.timeout_s <= 0.0:
-        raise fail("timeout_s", f"expected a positive timeout, got {s.timeout_s}")
-
-
 def load_mission(path: str | Path) -> Mission:
-    """A mission from a TOML file (or a QGroundControl ``.plan``); every error names the line."""
+    """A mission from a TOML file (or a QGroundControl ``.plan``), checked whole; every refusal is
+    a :class:`ConfigError` that names the file, the line and the key."""
     p = Path(path)
     if p.suffix == ".plan":
         from .plan import load_plan
 
         return load_plan(p)
-    data, text = load_toml(p)
-    data.setdefault("name", p.stem)
+    data, text = load_toml(p, MAX_FILE_BYTES)
+
+    def fail(key: str, reason: str) -> ConfigError:
+        return ConfigError(p, locate(text, key), key, reason)
+
+    data.setdefault("name", safe_component(p.stem))
     steps_raw = data.pop("steps", None)
     if not isinstance(steps_raw, list) or not steps_raw:
-        raise ConfigError(p, None, "steps", "expected at least one [[steps]] table")
+        raise ConfigError(p, locate(text, "steps"), "steps", "expected at least one [[steps]] table")
+    if len(steps_raw) > MAX_STEPS:
+        raise fail(f"steps[{MAX_STEPS}]", f"expected at most {MAX_STEPS} steps, got {len(steps_raw)}")
     mission = load_dataclass(Mission, data, p, text)
     steps = []
+    waypoints = 0
     for i, raw in enumerate(steps_raw):
         if not isinstance(raw, dict):
-            raise ConfigError(p, locate(text, f"steps[{i}]"), f"steps[{i}]", "expected a table")
-        steps.append(_step_from_table(raw, i, p, text))
-    _check_sequence(steps, p, text)
-    import dataclasses
+            raise fail(f"steps[{i}]", "expected a table")
+        wps = raw.get("waypoints")
+        waypoints += len(wps) if isinstance(wps, list) else 0
+        if waypoints > MAX_WAYPOINTS:  # before building thousands of tuples
+            raise fail(f"steps[{i}].waypoints", f"expected at most {MAX_WAYPOINTS} waypoints in a mission, "
+                       f"got {waypoints} by this step")
+        steps.append(_step_from_table(raw, i, fail, p, text))
+    mission = dataclasses.replace(mission, steps=tuple(steps))
+    try:
+        validate(mission)
+    except Problem as exc:
+        raise fail(exc.key, exc.reason) from None
+    return mission
 
-    return dataclasses.replace(mission, steps=tuple(steps))
 
-
-def _check_sequence(steps: list[Step], path: Path, text: str) -> None:
-    """Order rules: offboard flying needs an 'offboard' step first, which needs to be airborne."""
-    airborne = offboard = False
-    for i, s in enumerate(steps):
-        key = f"steps[{i}]"
-        if s.action == "takeoff":
-            airborne = True
-        elif s.action == "offboard":
-            if not airborne:
-                raise ConfigError(path, locate(text, key), key, "an 'offboard' step needs a 'takeoff' step before it")
-            offboard = True
-        elif s.action in ("hold", "goto") and not offboard:
-            raise ConfigError(path, locate(text, key), key, f"a {s.action!r} step needs an 'offboard' step before it")
-        elif s.action == "land":
-            airborne = offboard = False
+def _step_from_table(raw: dict, index: int, fail, path: Path, text: str) -> Step:  # type: ignore[no-untyped-def]
+    key = f"steps[{index}]"
+    action = raw.get("action")
+    if action not in ACTIONS:
+        raise fail(f"{key}.action", f"expected one of {', '.join(ACTIONS)}, got {str(action)[:40]!r}")
+    allowed = set(ALLOWED[action]) | {"action", "name"}
+    for k in raw:
+        if k not in allowed:
+            raise fail(f"{key}.{k}", f"not a key of a {action!r} step; expected one of: {', '.join(sorted(allowed))}")
+    for k in REQUIRED[action]:
+        if k not in raw:
+            raise fail(f"{key}.action", f"a {action!r} step needs {k!r}")
+    step = load_dataclass(Step, raw, path, text, key)
+    if not step.name:
+        step = dataclasses.replace(step, name=f"{index + 1}: {action}")
+    return step

@@ -79,7 +79,7 @@ def test_flying_offboard_without_the_offboard_step(tmp_path):
 
 def test_controller_section_errors(tmp_path):
     e = error(tmp_path, GOOD.replace('position = "pd_do"', 'position = "lqr"'))
-    assert e.key == "controller" and "lqr" in str(e) and e.line == 2
+    assert e.key == "controller.position" and "lqr" in str(e) and e.line == 3
     e = error(tmp_path, GOOD.replace('position = "pd_do"', 'position = "pd_do"\nrate_hz = 1000'))
     assert "10..250" in str(e)
 
