@@ -17,8 +17,8 @@ from .load import load_mission
 from .model import ACTIONS, ControllerConfig, Mission, SafetyConfig, Step, ThrustConfig
 from .plan import load_plan
 from .safety import FenceCircle, FencePolygon, SafetyVolume
-from .validate import validate
+from .validate import extent, validate
 
 __all__ = ["ACTIONS", "Step", "ControllerConfig", "ThrustConfig", "SafetyConfig", "SafetyVolume", "FenceCircle",
-           "FencePolygon", "Mission", "load_mission", "load_plan", "validate", "safe_component", "is_safe_component",
-           "ENVELOPE", "Range", "Problem"]
+           "FencePolygon", "Mission", "load_mission", "load_plan", "validate", "extent", "safe_component",
+           "is_safe_component", "ENVELOPE", "Range", "Problem"]

@@ -49,18 +49,25 @@ class Range:
         return math.isfinite(x) and (self.lo <= x <= self.hi or (bool(self.zero_means) and x == 0.0))
 
     def text(self) -> str:
-        r = f"{self.lo:g}..{self.hi:g} {self.unit}"
+        """The range for people: ``0.05..2 s``, ``5..70 deg, given in rad``, ``..., or 0 (meaning)``."""
         if self.degrees:
-            r = f"{math.degrees(self.lo):g}..{math.degrees(self.hi):g} deg (in {self.unit})"
+            unit = self.unit.replace("rad", "deg")
+            r = f"{_num(math.degrees(self.lo))}..{_num(math.degrees(self.hi))} {unit}, given in {self.unit}"
+        else:
+            r = f"{_num(self.lo)}..{_num(self.hi)}" + (f" {self.unit}" if self.unit else "")
         return r + (f", or 0 ({self.zero_means})" if self.zero_means else "")
+
+
+def _num(x: float) -> str:
+    return str(int(round(x))) if abs(x - round(x)) < 1e-9 * max(1.0, abs(x)) and abs(x) < 1e9 else f"{x:g}"
 
 
 MIN_HEIGHT_M = 0.3
 """the lowest a take-off, hold or waypoint may be above home [m]: below is the ground"""
 
 
-def _deg(lo: float, hi: float, why: str) -> Range:
-    return Range(math.radians(lo), math.radians(hi), "rad", why, degrees=True)
+def _deg(lo: float, hi: float, unit: str, why: str) -> Range:
+    return Range(math.radians(lo), math.radians(hi), unit, why, degrees=True)
 
 
 ENVELOPE: dict[str, Range] = {
@@ -84,15 +91,15 @@ ENVELOPE: dict[str, Range] = {
                                       "not 0"),
     "gains.aibc_gamma_per_s": Range(0, 50, "1/s", "AIBC adaptation rate"),
     "gains.integral_limit_m_s2": Range(0, 30, "m/s^2", "anti-windup bound of the integral term (3 g)"),
-    "reference.tilt_max_rad": _deg(5, 70, "thrust direction from vertical"),
+    "reference.tilt_max_rad": _deg(5, 70, "rad", "thrust direction from vertical"),
     "reference.min_up_force_fraction": Range(0.05, 1, "", "of the weight, always upwards"),
-    "reference.rate_limit_rad_s": _deg(10, 2000, "body-rate command; 2000 deg/s is a gyro's full range"),
+    "reference.rate_limit_rad_s": _deg(10, 2000, "rad/s", "body-rate command; 2000 deg/s is a gyro's full range"),
     "reference.rate_filter_time_constant_s": Range(0, 0.5, "s", "low-pass on the rate command (0: none)"),
     "trajectory.max_speed_m_s": Range(0.1, 15, "m/s", "reference speed between waypoints"),
     "trajectory.max_accel_m_s2": Range(0.1, 20, "m/s^2", "reference acceleration (2 g)"),
     "trajectory.max_jerk_m_s3": Range(0.5, 500, "m/s^3", "reference jerk"),
     "trajectory.bandwidth_rad_s": Range(0.1, 10, "rad/s", "reference filter"),
-    "trajectory.max_yaw_rate_rad_s": _deg(1, 360, "reference yaw rate"),
+    "trajectory.max_yaw_rate_rad_s": _deg(1, 360, "rad/s", "reference yaw rate"),
     "thrust.thrust_max_n": Range(0.1, 2000, "N", "thrust at full throttle", zero_means="ask the vehicle"),
     "thrust.hover_throttle": Range(0.05, 0.9, "", "normalised hover thrust; above 0.9 nothing is left to "
                                    "climb or correct with", zero_means="not given"),
@@ -171,7 +178,8 @@ def check_range(key: str, value: float, table_key: str | None = None) -> None:
     """Raise :class:`Problem` unless ``value`` is within the envelope row ``table_key`` (default: ``key``)."""
     row = ENVELOPE[table_key or key]
     if not row.accepts(value):
-        shown = f"{math.degrees(value):g} deg ({value:g} rad)" if row.degrees and math.isfinite(value) else f"{value:g}"
+        shown = (f"{math.degrees(value):g} {row.unit.replace('rad', 'deg')} ({value:g} {row.unit})"
+                 if row.degrees and math.isfinite(value) else f"{value:g}")
         raise Problem(key, f"expected {row.text()}, got {shown}")
 
 
@@ -190,5 +198,5 @@ def envelope_markdown() -> str:
         ("fence corner or centre from home", MAX_FENCE_DISTANCE_M, "m"),
         ("`name`, step names", MAX_NAME_CHARS, "characters"), ("`description`", MAX_TEXT_CHARS, "characters"),
     ):
-        lines.append(f"| {name} | {value:g} {unit} |".replace("  |", " |"))
+        lines.append(f"| {name} | {_num(value)}{' ' + unit if unit else ''} |")
     return "\n".join(lines) + "\n"

@@ -29,7 +29,7 @@ from .envelope import (
 from .model import ACTIONS, ALLOWED, Mission, Step
 from .safety import VOLUME_SHAPES, SafetyVolume, polygon_is_simple
 
-__all__ = ["validate", "check_volume", "RANGE_CHECKED_ELSEWHERE", "STEP_NUMBERS", "LEG_TIMEOUT_MARGIN_S"]
+__all__ = ["validate", "check_volume", "extent", "RANGE_CHECKED_ELSEWHERE", "STEP_NUMBERS", "LEG_TIMEOUT_MARGIN_S"]
 
 STEP_NUMBERS = ("altitude_m", "duration_s", "speed_m_s", "tolerance_m", "hold_s", "timeout_s", "yaw_deg", "value")
 """a step's numbers with an envelope row (``steps[].<key>``), checked where the action uses them"""
@@ -256,3 +256,16 @@ def _check_path(m: Mission) -> None:
                                   f"to fly the {leg:.0f} m to waypoint {j} at {speed:g} m/s, got {s.timeout_s:g} s")
         elif s.action == "land":
             pos = (pos[0], pos[1], 0.0)
+
+
+def extent(m: Mission) -> tuple[float, float]:
+    """How far from home [m] and how high above it [m] the mission's positions go (the take-off
+    heights, hold positions and waypoints), for people checking a mission."""
+    far = high = 0.0
+    for s in m.steps:
+        points = list(s.waypoints) + ([s.position_ned_m] if s.position_ned_m is not None else [])
+        for p in points:
+            far, high = max(far, math.hypot(float(p[0]), float(p[1]))), max(high, -float(p[2]))
+        if s.action == "takeoff":
+            high = max(high, s.altitude_m)
+    return far, high
