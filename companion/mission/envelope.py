@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 __all__ = [
     "Problem", "Range", "ENVELOPE", "CROSS_RULES", "MAX_FILE_BYTES", "MAX_NESTING", "MAX_STEPS", "MAX_WAYPOINTS",
-    "MAX_PLAN_ITEMS", "MAX_FENCES", "MAX_FENCE_VERTICES", "MAX_NAME_CHARS", "MAX_TEXT_CHARS", "MIN_HEIGHT_M",
-    "MAX_FENCE_DISTANCE_M", "safe_component", "is_safe_component", "check_range", "envelope_markdown",
+    "MAX_PLAN_ITEMS", "MAX_FENCES", "MAX_FENCE_VERTICES", "MAX_FENCE_CORNERS", "MAX_NAME_CHARS", "MAX_TEXT_CHARS",
+    "MIN_HEIGHT_M", "MAX_FENCE_DISTANCE_M", "safe_component", "is_safe_component", "check_range", "envelope_markdown",
 ]
 
 
@@ -132,7 +132,11 @@ CROSS_RULES = (
     "`vehicle.rotor_speed_min_rad_s` < `vehicle.rotor_speed_max_rad_s`",
     "every position of the mission (take-off height, hold positions, waypoints, and the straight paths between "
     f"them) lies in the safety volume and at least {MIN_HEIGHT_M:g} m above home (NED down <= -{MIN_HEIGHT_M:g})",
-    "a goto's `timeout_s` leaves time to fly each leg at its speed: timeout_s >= leg / speed + 5 s",
+    "the waypoint reference settles (it circles a waypoint for ever otherwise): `trajectory.max_jerk_m_s3` >= "
+    "`max_accel_m_s2 * bandwidth_rad_s`, and every speed (`trajectory.max_speed_m_s`, a goto's `speed_m_s`) <= "
+    "`4 * max_accel_m_s2 / bandwidth_rad_s`",
+    "a goto's `timeout_s` leaves time to fly each leg and settle: timeout_s >= leg / speed + speed / max_accel_m_s2 "
+    "+ max_accel_m_s2 / max_jerk_m_s3 + 14 / bandwidth_rad_s",
     "order: `offboard` after `takeoff`; `hold`/`goto` after `offboard`; no `takeoff` while airborne; a mission "
     "that takes off ends with `land`",
 )
@@ -141,12 +145,15 @@ MAX_FILE_BYTES = 1_000_000
 """a mission file is a few kB; a plan with a thousand waypoints is about 400 kB"""
 MAX_NESTING = 16
 """brackets and braces inside one another (a mission needs 3)"""
-MAX_STEPS = 256
-MAX_WAYPOINTS = 1000
+MAX_STEPS = 1000
+"""a soak test's ten hours of squares and holds is 960"""
+MAX_WAYPOINTS = 2000
 """in the whole mission"""
 MAX_PLAN_ITEMS = 2000
 MAX_FENCES = 16
 MAX_FENCE_VERTICES = 200
+MAX_FENCE_CORNERS = 500
+"""all polygons together: each path is checked against every edge"""
 MAX_FENCE_DISTANCE_M = 2000.0
 """a fence's corners and centres, from home"""
 MAX_NAME_CHARS = 64
@@ -194,7 +201,7 @@ def envelope_markdown() -> str:
         ("file size", MAX_FILE_BYTES, "bytes"), ("nesting of [ ] and { }", MAX_NESTING, "levels"),
         ("steps", MAX_STEPS, ""), ("waypoints (whole mission)", MAX_WAYPOINTS, ""),
         ("`.plan` mission items", MAX_PLAN_ITEMS, ""), ("fences", MAX_FENCES, ""),
-        ("corners per fence polygon", MAX_FENCE_VERTICES, ""),
+        ("corners per fence polygon", MAX_FENCE_VERTICES, ""), ("corners of all fence polygons", MAX_FENCE_CORNERS, ""),
         ("fence corner or centre from home", MAX_FENCE_DISTANCE_M, "m"),
         ("`name`, step names", MAX_NAME_CHARS, "characters"), ("`description`", MAX_TEXT_CHARS, "characters"),
     ):

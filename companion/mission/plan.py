@@ -60,7 +60,7 @@ from .envelope import (
 )
 from .model import Mission, SafetyConfig, Step
 from .safety import FenceCircle, FencePolygon, SafetyVolume, Vec2
-from .validate import LEG_TIMEOUT_MARGIN_S, validate
+from .validate import leg_time_s, validate
 
 __all__ = ["load_plan", "json_line", "EARTH_RADIUS_M", "COMMAND_NAMES"]
 
@@ -327,13 +327,15 @@ class _Converter:
         self.pending = []
 
     def goto(self, group: list[_Waypoint]) -> None:
-        speed = group[0].speed_m_s or TrajectoryParams().max_speed_m_s
+        traj = TrajectoryParams()
+        speed = group[0].speed_m_s or traj.max_speed_m_s
         legs, pos = [], self.pos
         for wp in group:
             if all(map(math.isfinite, wp.ned)):
                 legs.append(math.dist(pos, wp.ned))
                 pos = wp.ned
-        timeout = min(3600.0, max(60.0, math.ceil(1.5 * max(legs, default=0.0) / speed + 2 * LEG_TIMEOUT_MARGIN_S)))
+        # half as long again as the reference needs for the longest leg: room for the vehicle's lag
+        timeout = min(3600.0, max(60.0, math.ceil(1.5 * leg_time_s(max(legs, default=0.0), speed, traj))))
         first = group[0]
         step = Step("goto", f"waypoints {first.where[-1]}..{group[-1].where[-1]}" if len(group) > 1 else
                     f"waypoint {first.where[-1]}", waypoints=tuple(wp.ned for wp in group), speed_m_s=first.speed_m_s,

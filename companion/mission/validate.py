@@ -10,10 +10,12 @@ import math
 import re
 from typing import Any, Sequence
 
+from companion.control.params import TrajectoryParams
 from companion.control.position import POSITION_CONTROLLERS
 from companion.control.vector import Vec3
 
 from .envelope import (
+    MAX_FENCE_CORNERS,
     MAX_FENCE_DISTANCE_M,
     MAX_FENCE_VERTICES,
     MAX_FENCES,
@@ -29,7 +31,7 @@ from .envelope import (
 from .model import ACTIONS, ALLOWED, Mission, Step
 from .safety import VOLUME_SHAPES, SafetyVolume, polygon_is_simple
 
-__all__ = ["validate", "check_volume", "extent", "RANGE_CHECKED_ELSEWHERE", "STEP_NUMBERS", "LEG_TIMEOUT_MARGIN_S"]
+__all__ = ["validate", "check_volume", "extent", "RANGE_CHECKED_ELSEWHERE", "STEP_NUMBERS", "leg_time_s"]
 
 STEP_NUMBERS = ("altitude_m", "duration_s", "speed_m_s", "tolerance_m", "hold_s", "timeout_s", "yaw_deg", "value")
 """a step's numbers with an envelope row (``steps[].<key>``), checked where the action uses them"""
@@ -38,7 +40,10 @@ RANGE_CHECKED_ELSEWHERE = ("steps", "safety.volume.north_m", "safety.volume.east
                            "safety.volume.polygons")
 """fields whose numbers have a dedicated check here rather than one envelope row each"""
 
-LEG_TIMEOUT_MARGIN_S = 5.0
+SETTLE_BANDWIDTHS = 14.0
+"""the reference filter settles within this many 1/bandwidth after braking (measured over the envelope)"""
+FILTER_JERK_PER_ACCEL_BANDWIDTH = 1.0
+FILTER_ACCEL_PER_BANDWIDTH_SPEED = 0.25
 
 _PARAM_ID = re.compile(r"[A-Za-z0-9_]{1,16}")
 
@@ -124,6 +129,37 @@ def _walk_numbers(obj: Any, prefix: str) -> None:
             raise Problem(key, f"unexpected value {v!r}")
 
 
+def leg_time_s(leg_m: float, speed_m_s: float, t: TrajectoryParams) -> float:
+    """An upper bound on the time the velocity-limited reference takes to reach a waypoint
+    ``leg_m`` away at ``speed_m_s`` and settle there (within 1 mm and 1 mm/s, which a goto waits
+    for): cruise, accelerate and brake, the jerk limit, and the filter's settling. Measured with
+    :class:`~companion.control.trajectory.ReferenceFilter` over a grid spanning the envelope, for
+    parameters that keep the rules of :func:`_check_filter`."""
+    return (leg_m / speed_m_s + speed_m_s / t.max_accel_m_s2 + t.max_accel_m_s2 / t.max_jerk_m_s3
+            + SETTLE_BANDWIDTHS / t.bandwidth_rad_s)
+
+
+def _filter_speed_problem(speed: float, t: TrajectoryParams) -> str | None:
+    """The reference filter limit-cycles round a waypoint for ever when it cannot brake from its
+    speed within its bandwidth (accel < 0.25 bandwidth speed)."""
+    need = FILTER_ACCEL_PER_BANDWIDTH_SPEED * t.bandwidth_rad_s * speed
+    if t.max_accel_m_s2 < need:
+        return (f"expected at most {t.max_accel_m_s2 / (FILTER_ACCEL_PER_BANDWIDTH_SPEED * t.bandwidth_rad_s):.3g} "
+                f"m/s (4 trajectory.max_accel_m_s2 / bandwidth_rad_s): faster, the reference cannot brake within "
+                f"its bandwidth and circles the waypoint for ever; got {speed:g} m/s")
+    return None
+
+
+def _check_filter(t: TrajectoryParams) -> None:
+    if t.max_jerk_m_s3 < FILTER_JERK_PER_ACCEL_BANDWIDTH * t.max_accel_m_s2 * t.bandwidth_rad_s:
+        raise Problem("trajectory.max_jerk_m_s3", f"expected at least max_accel_m_s2 * bandwidth_rad_s = "
+                      f"{t.max_accel_m_s2 * t.bandwidth_rad_s:.3g} m/s^3: with less, the reference overshoots and "
+                      f"circles a waypoint for ever; got {t.max_jerk_m_s3:g}")
+    why = _filter_speed_problem(t.max_speed_m_s, t)
+    if why:
+        raise Problem("trajectory.max_speed_m_s", why)
+
+
 def _check_across(m: Mission) -> None:
     t = m.thrust.thrust_max_n
     if t > 0.0:
@@ -139,6 +175,7 @@ def _check_across(m: Mission) -> None:
     if s.link_lost_s < s.stale_hold_s:
         raise Problem("safety.link_lost_s", f"expected at least stale_hold_s ({s.stale_hold_s:g} s): the flight "
                       f"gives up after it asked for a hold, got {s.link_lost_s:g} s")
+    _check_filter(m.trajectory)
     v = m.vehicle
     if v.rotor_speed_min_rad_s >= v.rotor_speed_max_rad_s:
         raise Problem("vehicle.rotor_speed_max_rad_s", f"expected more than rotor_speed_min_rad_s "
@@ -175,6 +212,9 @@ def check_volume(vol: SafetyVolume, key: str) -> None:
             raise Problem(f"{ck}.center_ne_m", f"expected a centre within {MAX_FENCE_DISTANCE_M:g} m of home, "
                           f"got {list(c.center_ne_m)}")
         check_range(f"{ck}.radius_m", c.radius_m, "safety.volume.circles[].radius_m")
+    corners = sum(len(p.vertices_ne_m) for p in vol.polygons)
+    if corners > MAX_FENCE_CORNERS:
+        raise Problem(f"{key}.polygons", f"expected at most {MAX_FENCE_CORNERS} corners in all, got {corners}")
     for i, p in enumerate(vol.polygons):
         pk = f"{key}.polygons[{i}].vertices_ne_m"
         if not 3 <= len(p.vertices_ne_m) <= MAX_FENCE_VERTICES:
@@ -247,13 +287,17 @@ def _check_path(m: Mission) -> None:
             go(s.position_ned_m, f"{key}.position_ned_m", "the hold position")
         elif s.action == "goto":
             speed = s.speed_m_s if s.speed_m_s is not None else m.trajectory.max_speed_m_s
+            why = _filter_speed_problem(speed, m.trajectory) if s.speed_m_s is not None else None
+            if why:
+                raise Problem(f"{key}.speed_m_s", why)
             for j, wp in enumerate(s.waypoints):
                 start = pos
                 go(wp, f"{key}.waypoints[{j}]", "the waypoint")
                 leg = math.dist(start, wp)
-                if s.timeout_s < leg / speed + LEG_TIMEOUT_MARGIN_S:
-                    raise Problem(f"{key}.timeout_s", f"expected at least {leg / speed + LEG_TIMEOUT_MARGIN_S:.0f} s "
-                                  f"to fly the {leg:.0f} m to waypoint {j} at {speed:g} m/s, got {s.timeout_s:g} s")
+                need = leg_time_s(leg, speed, m.trajectory)
+                if s.timeout_s < need:
+                    raise Problem(f"{key}.timeout_s", f"expected at least {math.ceil(need)} s to fly the {leg:.1f} m "
+                                  f"to waypoint {j} at {speed:g} m/s and settle there, got {s.timeout_s:g} s")
         elif s.action == "land":
             pos = (pos[0], pos[1], 0.0)
 

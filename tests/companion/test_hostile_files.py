@@ -145,15 +145,15 @@ def test_enormous_waypoint_array(tmp_path, capsys):
     """20k waypoints: refused by their count (10^6 do not even fit in the 1 MB a file may have)."""
     p = tmp_path / "m.toml"
     p.write_text(GOOD.replace("[[1, 0, -1.5], [1, 1, -1.5]]", "[" + "[1,0,-1]," * 20_000 + "]"))
-    refused(capsys, p, 12, "steps[2].waypoints", "at most 1000 waypoints")
+    refused(capsys, p, 12, "steps[2].waypoints", "at most 2000 waypoints")
     p.write_text(GOOD.replace("[[1, 0, -1.5], [1, 1, -1.5]]", "[" + "[1,0,-1]," * 1_000_000 + "]"))
     refused(capsys, p, 12, "larger than")  # the waypoints line, where the 1 MB bound falls
 
 
 def test_too_many_steps(tmp_path, capsys):
     p = tmp_path / "m.toml"
-    p.write_text(GOOD + '\n[[steps]]\naction = "wait"\nduration_s = 1\n' * 300)
-    refused(capsys, p, 17 + 4 * 252, "steps[256]", "at most 256 steps")
+    p.write_text(GOOD + '\n[[steps]]\naction = "wait"\nduration_s = 1\n' * 1000)
+    refused(capsys, p, 17 + 4 * 996, "steps[1000]", "at most 1000 steps")
 
 
 @pytest.mark.parametrize("name", ["../../etc/cron.d/x", "a/b", "a\\b", "..", ".hidden", "a..b", "", "x" * 65,
