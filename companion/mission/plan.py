@@ -158,7 +158,7 @@ class _Converter:
             raise _Refusal(where + ("params", 6), f"expected an altitude in metres, got {alt!r}")
         if "AltitudeMode" in item:
             mode = item["AltitudeMode"]
-            if mode not in _MODE_FRAMES:
+            if not isinstance(mode, int) or isinstance(mode, bool) or mode not in _MODE_FRAMES:
                 raise _Refusal(where + ("AltitudeMode",), f"expected 1 (relative to launch), 2 (AMSL), 3 (calculated "
                                f"above terrain) or 4 (terrain frame), got {mode!r}")
             if frame not in _MODE_FRAMES[mode]:

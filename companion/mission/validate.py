@@ -143,7 +143,7 @@ def _filter_speed_problem(speed: float, t: TrajectoryParams) -> str | None:
     """The reference filter limit-cycles round a waypoint for ever when it cannot brake from its
     speed within its bandwidth (accel < 0.25 bandwidth speed)."""
     need = FILTER_ACCEL_PER_BANDWIDTH_SPEED * t.bandwidth_rad_s * speed
-    if t.max_accel_m_s2 < need:
+    if t.max_accel_m_s2 < need * (1.0 - 1e-9):  # on the bound is fine (and the bound's rounding)
         return (f"expected at most {t.max_accel_m_s2 / (FILTER_ACCEL_PER_BANDWIDTH_SPEED * t.bandwidth_rad_s):.3g} "
                 f"m/s (4 trajectory.max_accel_m_s2 / bandwidth_rad_s): faster, the reference cannot brake within "
                 f"its bandwidth and circles the waypoint for ever; got {speed:g} m/s")
@@ -151,7 +151,7 @@ def _filter_speed_problem(speed: float, t: TrajectoryParams) -> str | None:
 
 
 def _check_filter(t: TrajectoryParams) -> None:
-    if t.max_jerk_m_s3 < FILTER_JERK_PER_ACCEL_BANDWIDTH * t.max_accel_m_s2 * t.bandwidth_rad_s:
+    if t.max_jerk_m_s3 < FILTER_JERK_PER_ACCEL_BANDWIDTH * t.max_accel_m_s2 * t.bandwidth_rad_s * (1.0 - 1e-9):
         raise Problem("trajectory.max_jerk_m_s3", f"expected at least max_accel_m_s2 * bandwidth_rad_s = "
                       f"{t.max_accel_m_s2 * t.bandwidth_rad_s:.3g} m/s^3: with less, the reference overshoots and "
                       f"circles a waypoint for ever; got {t.max_jerk_m_s3:g}")
