@@ -26,6 +26,9 @@ Actions: ``takeoff``, ``offboard``, ``hold``, ``goto`` (waypoints through the ve
 reference), ``set_param`` (e.g. the simulated vehicle's suspended weight, ``SIM_FORCE_X``),
 ``wait``, ``land``. A ``set_param`` step names its parameter with ``param``.
 
+Instead of ``[[steps]]``, ``plan = "survey.plan"`` takes the steps (and the geofence) from a
+QGroundControl plan next to the file, flown with this file's controller, failsafes and volume.
+
 :func:`load_mission` is the one way in, for ``companion check`` and ``companion fly`` alike: the
 file is read within bounds (size, nesting, encoding: :func:`companion.config.read_text`), built into
 the dataclasses, then checked whole (:func:`.validate.validate`: names, counts, the envelope, the
@@ -40,7 +43,7 @@ from pathlib import Path
 
 from companion.config import ConfigError, load_dataclass, load_toml, locate
 
-from .envelope import MAX_FILE_BYTES, MAX_STEPS, MAX_WAYPOINTS, Problem, safe_component
+from .envelope import MAX_FILE_BYTES, MAX_STEPS, MAX_WAYPOINTS, Problem, is_safe_component, safe_component
 from .model import ACTIONS, ALLOWED, REQUIRED, Mission, Step
 from .validate import validate
 
@@ -62,6 +65,8 @@ def load_mission(path: str | Path) -> Mission:
 
     data.setdefault("name", safe_component(p.stem))
     steps_raw = data.pop("steps", None)
+    if "plan" in data:
+        return _with_plan(p, text, data, steps_raw, fail)
     if not isinstance(steps_raw, list) or not steps_raw:
         raise ConfigError(p, locate(text, "steps"), "steps", "expected at least one [[steps]] table")
     if len(steps_raw) > MAX_STEPS:
@@ -83,6 +88,30 @@ def load_mission(path: str | Path) -> Mission:
         validate(mission)
     except Problem as exc:
         raise fail(exc.key, exc.reason) from None
+    return mission
+
+
+def _with_plan(p: Path, text: str, data: dict, steps_raw: object, fail) -> Mission:  # type: ignore[no-untyped-def]
+    """A TOML mission whose steps (and fences) come from a QGroundControl plan next to it: the
+    TOML sets the controller, the failsafes and the volume (e.g. a ceiling above a plan's 50 m)."""
+    from .plan import import_plan
+
+    name = data.pop("plan")
+    if not (isinstance(name, str) and is_safe_component(name) and name.endswith(".plan")):
+        raise fail("plan", f"expected the file name of a .plan next to this file (letters, digits, '-', '_', '.'; "
+                   f"no directories), got {str(name)[:80]!r}")
+    if steps_raw is not None:
+        raise fail("steps", f"the steps come from {name}; expected no [[steps]] with plan = ...")
+    imported = import_plan(p.parent / name)
+    mission = load_dataclass(Mission, data, p, text)
+    vol = mission.safety.volume
+    volume = dataclasses.replace(vol, circles=vol.circles + imported.circles, polygons=vol.polygons + imported.polygons)
+    mission = dataclasses.replace(mission, description=mission.description or imported.description,
+                                  safety=dataclasses.replace(mission.safety, volume=volume), steps=imported.steps)
+    try:
+        validate(mission)
+    except Problem as exc:
+        raise imported.error(exc, len(vol.circles), len(vol.polygons)) or fail(exc.key, exc.reason) from None
     return mission
 
 

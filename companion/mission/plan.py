@@ -62,7 +62,7 @@ from .model import Mission, SafetyConfig, Step
 from .safety import FenceCircle, FencePolygon, SafetyVolume, Vec2
 from .validate import leg_time_s, validate
 
-__all__ = ["load_plan", "json_line", "EARTH_RADIUS_M", "COMMAND_NAMES"]
+__all__ = ["load_plan", "import_plan", "ImportedPlan", "json_line", "EARTH_RADIUS_M", "COMMAND_NAMES"]
 
 EARTH_RADIUS_M = 6378137.0
 """WGS-84 equatorial radius"""
@@ -138,6 +138,8 @@ class _Converter:
         self.ended_by: Path_ | None = None
         self.pos: Vec3 = (0.0, 0.0, 0.0)
         self.skipped: list[str] = []
+        self.waypoints = 0
+        """all the waypoints so far (MAX_WAYPOINTS bounds them)"""
 
     # --- geometry ---------------------------------------------------------------------------
 
@@ -251,8 +253,7 @@ class _Converter:
             raise _Refusal(where + ("params", 0), f"expected a hold time of {ENVELOPE['steps[].hold_s'].text()}, "
                            f"got {hold!r}")
         radius = params[1] if cmd == WAYPOINT and params[1] else Step.tolerance_m
-        self.pending.append(_Waypoint((n, e, -h), self.speed, self.speed_from, float(hold), float(radius),
-                                      where))
+        self.push(_Waypoint((n, e, -h), self.speed, self.speed_from, float(hold), float(radius), where))
 
     def change_speed(self, params: list, where: Path_) -> None:
         kind, speed, throttle = params[0], params[1], params[2]
@@ -297,13 +298,17 @@ class _Converter:
         if target is not None:
             last = self.pending[-1].ned if self.pending else self.pos
             if math.dist(target, last[:2]) > Step.tolerance_m:
-                self.pending.append(_Waypoint((target[0], target[1], last[2]), self.speed, self.speed_from, 0.0,
-                                              Step.tolerance_m, where))
+                self.push(_Waypoint((target[0], target[1], last[2]), self.speed, self.speed_from, 0.0,
+                                    Step.tolerance_m, where))
         self.flush()
         self.add(Step("land", "return and land" if cmd == RTL else "land"), where)
         self.phase, self.ended_by = "done", where
 
     # --- steps --------------------------------------------------------------------------------
+
+    def push(self, wp: _Waypoint) -> None:
+        self.pending.append(wp)
+        self.waypoints += 1
 
     def add(self, step: Step, where: Path_, fields: dict[str, Path_] | None = None) -> None:
         """Append ``step``, made from the item at ``where`` (its ``fields`` from those places)."""
@@ -391,10 +396,48 @@ def _fences(fence: object, conv: _Converter) -> tuple[tuple[FenceCircle, ...], t
     return tuple(circles), tuple(polygons)
 
 
-def load_plan(path: str | Path) -> Mission:
-    """A QGroundControl ``.plan`` as a :class:`Mission` (see the module docstring for what is
-    converted how), checked whole like a TOML mission; every refusal is a :class:`ConfigError`
-    naming the file, the line, the item path and what was expected."""
+@dataclass(frozen=True)
+class ImportedPlan:
+    """A plan converted: its steps and fences, and where in its JSON each came from."""
+
+    path: Path
+    text: str
+    steps: tuple[Step, ...]
+    circles: tuple[FenceCircle, ...]
+    polygons: tuple[FencePolygon, ...]
+    description: str
+    origin: dict[str, Path_]
+    """``steps[i]``, ``steps[i].waypoints[j]``, ... -> the item (or param) that made it"""
+
+    @property
+    def has_inclusion_fence(self) -> bool:
+        return any(f.inclusion for f in self.circles) or any(f.inclusion for f in self.polygons)
+
+    def error(self, problem: Problem, circles_before: int = 0, polygons_before: int = 0) -> ConfigError | None:
+        """``problem`` (a key of the mission made with this plan's steps, and its fences appended
+        after ``circles_before`` / ``polygons_before`` others) as a refusal naming this plan's JSON
+        line and item path; None if the key is not this plan's."""
+        origin = dict(self.origin)
+        for i in range(len(self.circles)):
+            k, w = f"safety.volume.circles[{circles_before + i}]", ("geoFence", "circles", i)
+            origin.update({k: w, f"{k}.center_ne_m": w + ("circle", "center"),
+                           f"{k}.radius_m": w + ("circle", "radius")})
+        for i, poly in enumerate(self.polygons):
+            k, w = f"safety.volume.polygons[{polygons_before + i}]", ("geoFence", "polygons", i)
+            origin.update({k: w, f"{k}.vertices_ne_m": w + ("polygon",)})
+            origin.update({f"{k}.vertices_ne_m[{j}]": w + ("polygon", j) for j in range(len(poly.vertices_ne_m))})
+        if not circles_before and not polygons_before and (self.circles or self.polygons):
+            origin["safety.volume"] = ("geoFence",)
+        where = _origin_of(problem.key, origin)
+        if where is None:
+            return None
+        return ConfigError(self.path, json_line(self.text, where), _key(where), problem.reason)
+
+
+def import_plan(path: str | Path) -> ImportedPlan:
+    """Read and convert a QGroundControl ``.plan`` (see the module docstring); a refusal during
+    reading or conversion is a :class:`ConfigError` with the JSON line and item path. The whole
+    mission is checked by the caller (:func:`load_plan`, or a TOML mission's ``plan = ...``)."""
     p = Path(path)
     text = read_text(p, MAX_FILE_BYTES, syntax="json")
     try:
@@ -405,21 +448,40 @@ def load_plan(path: str | Path) -> Mission:
         m = re.search(r"[0-9]{4000,}", text)
         raise ConfigError(p, text.count("\n", 0, m.start()) + 1 if m else None, "",
                           f"not valid JSON: {str(exc)[:100]}") from None
-    origin: dict[str, Path_] = {}
     try:
-        mission = _convert(plan, p, origin)
+        conv, circles, polygons = _convert(plan)
     except _Refusal as exc:
         raise ConfigError(p, json_line(text, exc.where), _key(exc.where), exc.reason) from None
+    description = f"imported from {safe_component(p.stem)}.plan (QGroundControl)"
+    if conv.skipped:
+        description += "; not flown: items " + ", ".join(conv.skipped)
+    rally = plan.get("rallyPoints")
+    if isinstance(rally, dict) and rally.get("points"):
+        description += "; rally points not used (RTL returns home)"
+    if len(description) > 1000:
+        description = description[:996] + " ..."
+    return ImportedPlan(p, text, tuple(conv.steps), circles, polygons, description, conv.origin)
+
+
+def load_plan(path: str | Path) -> Mission:
+    """A QGroundControl ``.plan`` as a :class:`Mission` with the default controller, failsafes and
+    volume (cylinder 50 m, 30 m high; with an inclusion fence, the fence bounds the extent, up to
+    1000 m), checked whole like a TOML mission; every refusal is a :class:`ConfigError` naming the
+    file, the JSON line, the item path and what was expected."""
+    imp = import_plan(path)
+    volume = SafetyVolume(circles=imp.circles, polygons=imp.polygons)
+    if imp.has_inclusion_fence:
+        volume = dataclasses.replace(volume, max_distance_m=float(ENVELOPE["safety.volume.max_distance_m"].hi))
+    mission = Mission(name=safe_component(imp.path.stem), description=imp.description,
+                      safety=SafetyConfig(volume=volume), steps=imp.steps)
     try:
         validate(mission)
     except Problem as exc:
-        where = _origin_of(exc.key, origin)
-        raise ConfigError(p, json_line(text, where) if where else None, _key(where) if where else exc.key,
-                          exc.reason) from None
+        raise imp.error(exc) or ConfigError(imp.path, None, exc.key, exc.reason) from None
     return mission
 
 
-def _convert(plan: Any, p: Path, origin: dict[str, Path_]) -> Mission:
+def _convert(plan: Any) -> tuple[_Converter, tuple[FenceCircle, ...], tuple[FencePolygon, ...]]:
     if not isinstance(plan, dict) or plan.get("fileType") != "Plan":
         raise _Refusal(("fileType",) if isinstance(plan, dict) else (), "expected a QGroundControl plan "
                        "(\"fileType\": \"Plan\")")
@@ -441,7 +503,7 @@ def _convert(plan: Any, p: Path, origin: dict[str, Path_]) -> Mission:
     conv = _Converter(home, _number(home[2]))
     for n, item in enumerate(items):
         conv.item(item, ("mission", "items", n))
-        if len(conv.pending) + sum(len(s.waypoints) for s in conv.steps) > MAX_WAYPOINTS:
+        if conv.waypoints > MAX_WAYPOINTS:
             raise _Refusal(("mission", "items", n), f"expected at most {MAX_WAYPOINTS} waypoints")
     if conv.phase == "ground":
         raise _Refusal(("mission", "items"), "expected a take-off item (command 22)")
@@ -449,31 +511,7 @@ def _convert(plan: Any, p: Path, origin: dict[str, Path_]) -> Mission:
         raise _Refusal(("mission", "items", len(items) - 1), "the mission ends in the air: expected a land (21) or "
                        "RTL (20) item last")
     circles, polygons = _fences(plan.get("geoFence"), conv)
-    volume = SafetyVolume(circles=circles, polygons=polygons)
-    if any(f.inclusion for f in circles + polygons):  # type: ignore[operator]
-        volume = dataclasses.replace(volume, max_distance_m=float(ENVELOPE["safety.volume.max_distance_m"].hi))
-    for i in range(len(circles)):
-        origin[f"safety.volume.circles[{i}]"] = ("geoFence", "circles", i)
-        origin[f"safety.volume.circles[{i}].center_ne_m"] = ("geoFence", "circles", i, "circle", "center")
-        origin[f"safety.volume.circles[{i}].radius_m"] = ("geoFence", "circles", i, "circle", "radius")
-    for i, poly in enumerate(polygons):
-        origin[f"safety.volume.polygons[{i}]"] = ("geoFence", "polygons", i)
-        origin[f"safety.volume.polygons[{i}].vertices_ne_m"] = ("geoFence", "polygons", i, "polygon")
-        for j in range(len(poly.vertices_ne_m)):
-            origin[f"safety.volume.polygons[{i}].vertices_ne_m[{j}]"] = ("geoFence", "polygons", i, "polygon", j)
-    if circles or polygons:
-        origin["safety.volume"] = ("geoFence",)
-    origin.update(conv.origin)
-    name = safe_component(p.stem)
-    description = f"imported from {name}.plan (QGroundControl)"
-    if conv.skipped:
-        description += "; not flown: items " + ", ".join(conv.skipped)
-    rally = plan.get("rallyPoints")
-    if isinstance(rally, dict) and rally.get("points"):
-        description += "; rally points not used (RTL returns home)"
-    if len(description) > 1000:
-        description = description[:996] + " ..."
-    return Mission(name=name, description=description, safety=SafetyConfig(volume=volume), steps=tuple(conv.steps))
+    return conv, circles, polygons
 
 
 def _origin_of(key: str, origin: dict[str, Path_]) -> Path_ | None:

@@ -295,3 +295,65 @@ def test_json_line_finds_values():
     assert json_line(text, ("a", 1, "zz")) == 4  # absent: the nearest enclosing value
     assert json_line(text, ()) == 1
     assert math.isfinite(json_line('{"x": "a\\"[{,:"}', ("x",)))
+
+
+# --- a TOML mission flying a plan: its controller, failsafes and volume ----------------------
+
+
+def at_height(plan, height):
+    for it in plan["mission"]["items"]:
+        if it.get("AltitudeMode") == 1 and it["command"] != 21:
+            it["Altitude"] = it["params"][6] = height
+    return plan
+
+
+def toml_with_plan(tmp_path, body, plan):
+    write(tmp_path, plan, "survey.plan")
+    p = tmp_path / "survey.toml"
+    p.write_text(body)
+    return p
+
+
+def test_a_toml_mission_flies_a_plan_under_its_own_volume(tmp_path):
+    plan = at_height(fixture("square_relative.plan"), 50)  # QGroundControl's default altitude
+    with pytest.raises(ConfigError, match="50.0 m above home, limit 30 m"):
+        load_plan(write(tmp_path, plan))
+    p = toml_with_plan(tmp_path, 'name = "survey"\nplan = "survey.plan"\n\n[controller]\nposition = "pd_do"\n\n'
+                       '[safety.volume]\nmax_distance_m = 60\nmax_altitude_m = 55\n', plan)
+    m = load_mission(p)
+    assert m.name == "survey" and m.controller.position == "pd_do"
+    assert m.steps[0].altitude_m == 50 and near(goto_steps(m)[0].waypoints[0], (20, 0, -50))
+    v = m.safety.volume
+    assert (v.max_distance_m, v.max_altitude_m) == (60.0, 55.0) and len(v.polygons) == 1 and len(v.circles) == 1
+
+
+def test_a_plan_waypoint_outside_the_toml_volume_names_the_plan(tmp_path):
+    p = toml_with_plan(tmp_path, 'plan = "survey.plan"\n\n[safety.volume]\nmax_distance_m = 25\n',
+                       fixture("square_relative.plan"))
+    with pytest.raises(ConfigError) as e:
+        load_mission(p)
+    # (20, 20) is 28 m from home: outside the TOML's 25 m; the error points into the plan
+    assert e.value.path == str(tmp_path / "survey.plan") and e.value.key == "mission.items[3]"
+    assert "28.3 m from home, limit 25 m" in e.value.reason
+    lines = (tmp_path / "survey.plan").read_text().splitlines()
+    assert lines[e.value.line - 1].strip() == "{"
+
+
+def test_plan_key_errors_name_the_toml(tmp_path):
+    for value, words in (('"../survey.plan"', "no directories"), ('"/etc/x.plan"', "no directories"),
+                         ('"survey.toml"', ".plan next to this file"), ("3", ".plan next to this file")):
+        p = toml_with_plan(tmp_path, f'name = "s"\nplan = {value}\n', fixture("square_relative.plan"))
+        with pytest.raises(ConfigError) as e:
+            load_mission(p)
+        assert (e.value.path, e.value.line, e.value.key) == (str(p), 2, "plan") and words in e.value.reason
+    p = toml_with_plan(tmp_path, 'plan = "survey.plan"\n\n[[steps]]\naction = "land"\n', fixture("fenced_L.plan"))
+    with pytest.raises(ConfigError, match="the steps come from survey.plan") as e:
+        load_mission(p)
+    p = toml_with_plan(tmp_path, 'plan = "survey.plan"\n\n[safety.volume]\nmax_altitude_m = 5\n',
+                       fixture("fenced_L.plan"))
+    with pytest.raises(ConfigError) as e:
+        load_mission(p)
+    assert e.value.path == str(tmp_path / "survey.plan") and "8.0 m above home, limit 5 m" in e.value.reason
+    p = toml_with_plan(tmp_path, 'plan = "missing.plan"\n', fixture("fenced_L.plan"))
+    with pytest.raises(ConfigError, match="cannot read file"):
+        load_mission(p)
