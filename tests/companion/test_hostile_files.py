@@ -205,3 +205,20 @@ def test_read_text_skips_json_strings_when_counting_nesting(tmp_path):
     p.write_text(json.dumps({"a": "x\\\"" + "[" * 100, "b": [[[[[[[[[[[[[[[[[[1]]]]]]]]]]]]]]]]]]}))
     with pytest.raises(ConfigError, match="nested"):
         read_text(p, syntax="json")
+
+
+@pytest.mark.parametrize("change", [
+    lambda t: t.replace('name = "m"', 'name = "../../x"'),
+    lambda t: t.replace("[1, 1, -1.5]]", "[1, 1e9, -1.5]]"),
+    lambda t: t + "x = " + "[" * 50 + "]" * 50 + "\n",
+    lambda t: t.replace('[[steps]]\naction = "land"\n', ""),
+    lambda t: t + '\n[safety]\ntelemetry_timeout_s = 0\n',
+])
+def test_fly_refuses_what_check_refuses_with_the_same_message(tmp_path, capsys, change):
+    """One loader: `fly` exits 2 with check's message, before it opens any link."""
+    p = tmp_path / "m.toml"
+    p.write_text(change(GOOD))
+    code, err = check(capsys, p)
+    assert code == 2 and err.startswith(f"companion: error: {p}:")
+    assert main(["fly", str(p), "--connect", "udp://127.0.0.1:9", "--no-plots"]) == 2
+    assert capsys.readouterr().err.strip() == err
