@@ -98,7 +98,8 @@ ENVELOPE: dict[str, Range] = {
     "trajectory.max_speed_m_s": Range(0.1, 15, "m/s", "reference speed between waypoints"),
     "trajectory.max_accel_m_s2": Range(0.1, 20, "m/s^2", "reference acceleration (2 g)"),
     "trajectory.max_jerk_m_s3": Range(0.5, 500, "m/s^3", "reference jerk"),
-    "trajectory.bandwidth_rad_s": Range(0.1, 10, "rad/s", "reference filter"),
+    "trajectory.bandwidth_rad_s": Range(0.1, 5, "rad/s", "reference filter, stepped at the control rate (down "
+                                        "to 10 Hz): above 0.5 per step it does not settle"),
     "trajectory.max_yaw_rate_rad_s": _deg(1, 360, "rad/s", "reference yaw rate"),
     "thrust.thrust_max_n": Range(0.1, 2000, "N", "thrust at full throttle", zero_means="ask the vehicle"),
     "thrust.hover_throttle": Range(0.05, 0.9, "", "normalised hover thrust; above 0.9 nothing is left to "
@@ -132,9 +133,9 @@ CROSS_RULES = (
     "`vehicle.rotor_speed_min_rad_s` < `vehicle.rotor_speed_max_rad_s`",
     "every position of the mission (take-off height, hold positions, waypoints, and the straight paths between "
     f"them) lies in the safety volume and at least {MIN_HEIGHT_M:g} m above home (NED down <= -{MIN_HEIGHT_M:g})",
-    "the waypoint reference settles (it circles a waypoint for ever otherwise): `trajectory.max_jerk_m_s3` >= "
-    "`max_accel_m_s2 * bandwidth_rad_s`, and every speed (`trajectory.max_speed_m_s`, a goto's `speed_m_s`) <= "
-    "`4 * max_accel_m_s2 / bandwidth_rad_s`",
+    "the waypoint reference settles on the straight line to a waypoint (else it overshoots by metres or circles "
+    "it for ever): `trajectory.max_jerk_m_s3` >= `max_accel_m_s2 * bandwidth_rad_s`, and every speed "
+    "(`trajectory.max_speed_m_s`, a goto's `speed_m_s`) <= `2 * max_accel_m_s2 / bandwidth_rad_s`",
     "a goto's `timeout_s` leaves time to fly each leg and settle: timeout_s >= leg / speed + speed / max_accel_m_s2 "
     "+ max_accel_m_s2 / max_jerk_m_s3 + 14 / bandwidth_rad_s",
     "order: `offboard` after `takeoff`; `hold`/`goto` after `offboard`; no `takeoff` while airborne; a mission "

@@ -43,7 +43,7 @@ RANGE_CHECKED_ELSEWHERE = ("steps", "safety.volume.north_m", "safety.volume.east
 SETTLE_BANDWIDTHS = 14.0
 """the reference filter settles within this many 1/bandwidth after braking (measured over the envelope)"""
 FILTER_JERK_PER_ACCEL_BANDWIDTH = 1.0
-FILTER_ACCEL_PER_BANDWIDTH_SPEED = 0.25
+FILTER_ACCEL_PER_BANDWIDTH_SPEED = 0.5
 
 _PARAM_ID = re.compile(r"[A-Za-z0-9_]{1,16}")
 
@@ -140,13 +140,14 @@ def leg_time_s(leg_m: float, speed_m_s: float, t: TrajectoryParams) -> float:
 
 
 def _filter_speed_problem(speed: float, t: TrajectoryParams) -> str | None:
-    """The reference filter limit-cycles round a waypoint for ever when it cannot brake from its
-    speed within its bandwidth (accel < 0.25 bandwidth speed)."""
+    """The reference filter overshoots a waypoint (by metres) or circles it for ever when it
+    cannot brake from its speed within its bandwidth: accel >= 0.5 bandwidth speed keeps it on the
+    straight line to the waypoint (measured: under 1 cm off it over the envelope)."""
     need = FILTER_ACCEL_PER_BANDWIDTH_SPEED * t.bandwidth_rad_s * speed
     if t.max_accel_m_s2 < need * (1.0 - 1e-9):  # on the bound is fine (and the bound's rounding)
         return (f"expected at most {t.max_accel_m_s2 / (FILTER_ACCEL_PER_BANDWIDTH_SPEED * t.bandwidth_rad_s):.3g} "
-                f"m/s (4 trajectory.max_accel_m_s2 / bandwidth_rad_s): faster, the reference cannot brake within "
-                f"its bandwidth and circles the waypoint for ever; got {speed:g} m/s")
+                f"m/s (2 trajectory.max_accel_m_s2 / bandwidth_rad_s): faster, the reference cannot brake within "
+                f"its bandwidth, overshoots the waypoint or circles it for ever; got {speed:g} m/s")
     return None
 
 

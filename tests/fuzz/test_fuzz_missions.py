@@ -260,9 +260,9 @@ def generated_mission(draw: st.DrawFn) -> str:
         angle = draw(st.floats(0.0, 6.28))
         volume["circles"] = [{"center_ne_m": [off * math.cos(angle), off * math.sin(angle)], "radius_m": radius,
                               "inclusion": inclusion}]
-    bw = val("bandwidth", 0.1, 10.0)
-    bwp = clamp(bw, 0.1, 10.0)  # for the ranges that depend on it
-    accel = val("accel", clamp(0.1 * bwp, 0.1, 20.0), 20.0)  # at least 0.4 m/s possible: 4 accel / bandwidth
+    bw = val("bandwidth", 0.1, 5.0)
+    bwp = clamp(bw, 0.1, 5.0)  # for the ranges that depend on it
+    accel = val("accel", clamp(0.2 * bwp, 0.1, 20.0), 20.0)  # at least 0.4 m/s possible: 2 accel / bandwidth
     ap = clamp(accel, 0.1, 20.0)
     telemetry = val("telemetry", 0.05, 2.0)
     stale = val("stale", clamp(telemetry, 0.1, 10.0), 10.0)
@@ -270,7 +270,7 @@ def generated_mission(draw: st.DrawFn) -> str:
         "name": "../x" if bad == "name" else draw(st.sampled_from(["gen", "a.b-c_1", "_9"])),
         "controller": {"position": draw(st.sampled_from(["ism_do", "pd_do", "pid", "aibc"])),
                        "rate_hz": val("rate", 10.0, 250.0)},
-        "trajectory": {"max_speed_m_s": val("speed", 0.1, min(15.0, 4 * ap / bwp)), "max_accel_m_s2": accel,
+        "trajectory": {"max_speed_m_s": val("speed", 0.1, min(15.0, 2 * ap / bwp)), "max_accel_m_s2": accel,
                        "max_jerk_m_s3": val("jerk", clamp(ap * bwp, 0.5, 500.0), 500.0), "bandwidth_rad_s": bw},
         "safety": {"telemetry_timeout_s": telemetry, "stale_hold_s": stale,
                    "link_lost_s": val("link", clamp(stale, 0.5, 30.0), 30.0), "max_tilt_deg": val("tilt", 5.0, 70.0),
@@ -284,7 +284,7 @@ def generated_mission(draw: st.DrawFn) -> str:
             steps.append({"action": "hold", "duration_s": val("duration", 0.01, 30.0),
                           "position_ned_m": point(r, h)})
         else:
-            speed = val("goto_speed", 0.1, min(15.0, 4 * ap / bwp))
+            speed = val("goto_speed", 0.1, min(15.0, 2 * ap / bwp))
             # long enough for legs across the volume (the bound the loader checks), or not
             sp = clamp(speed, 0.1, 15.0)
             need = 2.0 * clamp(r, 1.0, 60.0) / sp + sp / ap + ap / 0.5 + 14.0 / bwp
