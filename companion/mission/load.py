@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Any, Callable
 
 from companion.config import ConfigError, load_dataclass, load_toml, locate
 
@@ -61,7 +62,7 @@ def load_mission(path: str | Path) -> Mission:
     data, text = load_toml(p, MAX_FILE_BYTES)
 
     def fail(key: str, reason: str) -> ConfigError:
-        return ConfigError(p, locate(text, key), key, reason)
+        return ConfigError(p, _line(text, key), key, reason)
 
     data.setdefault("name", safe_component(p.stem))
     steps_raw = data.pop("steps", None)
@@ -91,7 +92,22 @@ def load_mission(path: str | Path) -> Mission:
     return mission
 
 
-def _with_plan(p: Path, text: str, data: dict, steps_raw: object, fail) -> Mission:  # type: ignore[no-untyped-def]
+def _line(text: str, key: str) -> int | None:
+    """The line of ``key``, or of the nearest enclosing key that is written out (a fence inside an
+    inline array has no line of its own: the array's is given)."""
+    while key:
+        line = locate(text, key)
+        if line is not None:
+            return line
+        cut = max(key.rfind("."), key.rfind("["))
+        key = key[:cut] if cut > 0 else ""
+    return None
+
+
+Fail = Callable[[str, str], ConfigError]
+
+
+def _with_plan(p: Path, text: str, data: dict[str, Any], steps_raw: object, fail: Fail) -> Mission:
     """A TOML mission whose steps (and fences) come from a QGroundControl plan next to it: the
     TOML sets the controller, the failsafes and the volume (e.g. a ceiling above a plan's 50 m)."""
     from .plan import import_plan
@@ -115,7 +131,7 @@ def _with_plan(p: Path, text: str, data: dict, steps_raw: object, fail) -> Missi
     return mission
 
 
-def _step_from_table(raw: dict, index: int, fail, path: Path, text: str) -> Step:  # type: ignore[no-untyped-def]
+def _step_from_table(raw: dict[str, Any], index: int, fail: Fail, path: Path, text: str) -> Step:
     key = f"steps[{index}]"
     action = raw.get("action")
     if action not in ACTIONS:

@@ -31,6 +31,10 @@ horizontal extent (up to the envelope's 1000 m). The height limit is the default
 Errors name the file, the JSON line, the item path (``mission.items[3].params[6]``) and what was
 expected; checks after conversion (the volume, the envelope) are reported against the item that
 produced the offending step.
+
+:func:`load_plan` flies a plan with the default controller, failsafes and volume;
+:func:`import_plan` gives the converted steps and fences to a TOML mission that names the plan
+(``plan = "survey.plan"``) and sets its own.
 """
 
 from __future__ import annotations
@@ -126,7 +130,7 @@ class _Waypoint:
 class _Converter:
     """Items in, steps out, and where each step came from (for the errors found after conversion)."""
 
-    def __init__(self, home: list, has_home_alt: bool) -> None:
+    def __init__(self, home: list[Any], has_home_alt: bool) -> None:
         self.lat0, self.lon0 = float(home[0]), float(home[1])
         self.home_alt = float(home[2]) if has_home_alt else math.nan
         self.steps: list[Step] = []
@@ -153,7 +157,7 @@ class _Converter:
             raise _Refusal(where, f"expected latitude and longitude in degrees, got {[lat, lon]!r}")
         return self.ne(float(lat), float(lon))
 
-    def height(self, item: dict, where: Path_) -> float:
+    def height(self, item: dict[str, Any], where: Path_) -> float:
         """Param 7 as metres above home, from the item's frame (and its AltitudeMode, if any)."""
         frame, alt = item.get("frame"), item["params"][6]
         if not _number(alt):
@@ -225,7 +229,7 @@ class _Converter:
                            "expected 22 take-off, 16 waypoint, 19 loiter time, 178 change speed, 93 delay, 21 land, "
                            "20 RTL, or a camera/gimbal command (skipped)")
 
-    def takeoff(self, item: dict, params: list, where: Path_) -> None:
+    def takeoff(self, item: dict[str, Any], params: list[Any], where: Path_) -> None:
         if self.phase != "ground":
             raise _Refusal(where, "a second take-off: expected one, before the waypoints")
         h = self.height(item, where)
@@ -240,7 +244,7 @@ class _Converter:
         self.phase = "air"
         self.pos = (0.0, 0.0, -h)
 
-    def waypoint(self, item: dict, params: list, where: Path_, cmd: int) -> None:
+    def waypoint(self, item: dict[str, Any], params: list[Any], where: Path_, cmd: int) -> None:
         if self.phase != "air":
             raise _Refusal(where, "a waypoint before the take-off item (22): expected the take-off first")
         if cmd == WAYPOINT and params[3] is not None and not math.isnan(params[3]):
@@ -255,7 +259,7 @@ class _Converter:
         radius = params[1] if cmd == WAYPOINT and params[1] else Step.tolerance_m
         self.push(_Waypoint((n, e, -h), self.speed, self.speed_from, float(hold), float(radius), where))
 
-    def change_speed(self, params: list, where: Path_) -> None:
+    def change_speed(self, params: list[Any], where: Path_) -> None:
         kind, speed, throttle = params[0], params[1], params[2]
         if kind not in (0, 1):
             raise _Refusal(where + ("params", 0), f"expected speed type 0 (air) or 1 (ground), got {kind!r}: climb "
@@ -274,7 +278,7 @@ class _Converter:
             raise _Refusal(where + ("params", 1), exc.reason) from None
         self.speed, self.speed_from = float(speed), where + ("params", 1)
 
-    def delay(self, params: list, where: Path_) -> None:
+    def delay(self, params: list[Any], where: Path_) -> None:
         seconds = params[0]
         if not _number(seconds) or seconds < 0:
             raise _Refusal(where + ("params", 0), f"expected a delay in seconds, got {seconds!r} (a time of day is "
@@ -286,7 +290,7 @@ class _Converter:
         self.add(Step(action, f"delay {seconds:g} s", duration_s=float(seconds)), where,
                  {"duration_s": where + ("params", 0)})
 
-    def finish(self, item: dict, params: list, where: Path_, cmd: int) -> None:
+    def finish(self, item: dict[str, Any], params: list[Any], where: Path_, cmd: int) -> None:
         if self.phase != "air":
             raise _Refusal(where, "a land or RTL item before the take-off: expected the take-off first")
         if cmd == RTL:
@@ -322,13 +326,14 @@ class _Converter:
         """Consecutive waypoints with the same speed, hold and radius become one goto step, its
         timeout long enough for its longest leg."""
         group: list[_Waypoint] = []
-        for wp in self.pending + [None]:  # type: ignore[list-item]
-            if group and (wp is None or (wp.speed_m_s, wp.hold_s, wp.tolerance_m) != (
-                    group[0].speed_m_s, group[0].hold_s, group[0].tolerance_m)):
+        for wp in self.pending:
+            if group and (wp.speed_m_s, wp.hold_s, wp.tolerance_m) != (
+                    group[0].speed_m_s, group[0].hold_s, group[0].tolerance_m):
                 self.goto(group)
                 group = []
-            if wp is not None:
-                group.append(wp)
+            group.append(wp)
+        if group:
+            self.goto(group)
         self.pending = []
 
     def goto(self, group: list[_Waypoint]) -> None:
@@ -368,23 +373,26 @@ def _fences(fence: object, conv: _Converter) -> tuple[tuple[FenceCircle, ...], t
     for i, c in enumerate(circles_raw):
         w: Path_ = base + ("circles", i)
         body = c.get("circle") if isinstance(c, dict) else None
-        if not isinstance(body, dict) or not isinstance(body.get("center"), list) or len(body["center"]) < 2:
+        if not isinstance(c, dict) or not isinstance(body, dict) or not isinstance(body.get("center"), list) \
+                or len(body["center"]) < 2:
             raise _Refusal(w, "expected {\"circle\": {\"center\": [lat, lon], \"radius\": r}, \"inclusion\": ...}")
-        if not isinstance(c.get("inclusion"), bool):
-            raise _Refusal(w + ("inclusion",), f"expected true or false, got {c.get('inclusion')!r}")
+        inclusion = c.get("inclusion")
+        if not isinstance(inclusion, bool):
+            raise _Refusal(w + ("inclusion",), f"expected true or false, got {inclusion!r}")
         radius = body.get("radius")
         if not _number(radius):
             raise _Refusal(w + ("circle", "radius"), f"expected a radius in metres, got {radius!r}")
         center = conv.coordinate(body["center"][0], body["center"][1], w + ("circle", "center"))
-        circles.append(FenceCircle(center, float(radius), c["inclusion"]))  # type: ignore[arg-type]
+        circles.append(FenceCircle(center, float(radius), inclusion))
     polygons = []
     for i, poly in enumerate(polygons_raw):
         w = base + ("polygons", i)
         corners = poly.get("polygon") if isinstance(poly, dict) else None
-        if not isinstance(corners, list):
+        if not isinstance(poly, dict) or not isinstance(corners, list):
             raise _Refusal(w, "expected {\"polygon\": [[lat, lon], ...], \"inclusion\": ...}")
-        if not isinstance(poly.get("inclusion"), bool):  # type: ignore[union-attr]
-            raise _Refusal(w + ("inclusion",), f"expected true or false, got {poly.get('inclusion')!r}")  # type: ignore[union-attr]
+        inclusion = poly.get("inclusion")
+        if not isinstance(inclusion, bool):
+            raise _Refusal(w + ("inclusion",), f"expected true or false, got {inclusion!r}")
         if not 3 <= len(corners) <= MAX_FENCE_VERTICES:
             raise _Refusal(w + ("polygon",), f"expected 3..{MAX_FENCE_VERTICES} corners, got {len(corners)}")
         vertices = []
@@ -392,7 +400,7 @@ def _fences(fence: object, conv: _Converter) -> tuple[tuple[FenceCircle, ...], t
             if not isinstance(v, list) or len(v) < 2:
                 raise _Refusal(w + ("polygon", j), f"expected [latitude, longitude], got {str(v)[:40]}")
             vertices.append(conv.coordinate(v[0], v[1], w + ("polygon", j)))
-        polygons.append(FencePolygon(tuple(vertices), poly["inclusion"]))  # type: ignore[index]
+        polygons.append(FencePolygon(tuple(vertices), inclusion))
     return tuple(circles), tuple(polygons)
 
 

@@ -179,6 +179,7 @@ def test_fences_written_in_toml(tmp_path):
     e = refusal(tmp_path, MISSION.replace("max_altitude_m = 5\n", "max_altitude_m = 5\npolygons = [{vertices_ne_m = "
                                           "[[-1, -1], [1, 1], [1, -1], [-1, 1]]}]\n"))
     assert e.key == "safety.volume.polygons[0].vertices_ne_m" and "simple polygon" in e.reason
+    assert e.line == 6  # the line of the inline array that holds the polygon
 
 
 def test_a_goto_timeout_too_short_for_its_leg(tmp_path):
