@@ -31,9 +31,9 @@ action = "land"
 
 def check(capsys, path):
     """`companion check path`: exit code and the one error line."""
-    t0 = time.monotonic()
+    t0 = time.process_time()  # CPU time: what the file costs, whatever else runs on the machine
     code = main(["check", str(path)])
-    assert time.monotonic() - t0 < 5.0, "a hostile file must be refused quickly"
+    assert time.process_time() - t0 < 5.0, "a hostile file must be refused quickly"
     return code, capsys.readouterr().err.strip()
 
 
@@ -99,10 +99,10 @@ def test_a_sparse_file_of_a_terabyte_costs_nothing(tmp_path):
     p = tmp_path / "m.toml"
     with open(p, "wb") as f:
         f.truncate(1 << 40)
-    t0 = time.monotonic()
+    t0 = time.process_time()
     with pytest.raises(ConfigError, match="larger than"):
         load_mission(p)
-    assert time.monotonic() - t0 < 1.0
+    assert time.process_time() - t0 < 1.0
 
 
 def test_not_a_regular_file(tmp_path, capsys):
