@@ -72,8 +72,8 @@ def _deg(lo: float, hi: float, unit: str, why: str) -> Range:
 
 ENVELOPE: dict[str, Range] = {
     # key: the dotted path in the file; `steps[]` is every step that uses the key
-    "controller.rate_hz": Range(10, 250, "Hz", "the control loop in vehicle time; 10 Hz is the slowest that holds "
-                                "a hover, 250 Hz the most a MAVLink link carries"),
+    "controller.rate_hz": Range(10, 250, "Hz", "the control loop in vehicle time: the range the companion is built "
+                                "and tested for (fly's --rate too)"),
     "vehicle.mass_kg": Range(0.05, 30, "kg", "the controller's nominal mass: a multicopter, not a typo"),
     "vehicle.inertia_kg_m2": Range(1e-6, 10, "kg m^2", "principal moments of inertia"),
     "vehicle.arm_length_m": Range(0.02, 2, "m", "rotor arm"),
@@ -83,8 +83,8 @@ ENVELOPE: dict[str, Range] = {
     "vehicle.rotor_speed_max_rad_s": Range(10, 1e4, "rad/s", "full rotor speed"),
     "vehicle.gravity_m_s2": Range(9.76, 9.84, "m/s^2", "Earth's surface gravity (9.78 at the equator, 9.83 at the "
                                   "poles): 98.1 is a typo, not a planet"),
-    "gains.omega_c_rad_s": Range(0.1, 10, "rad/s", "position-loop bandwidth; above 10 rad/s it meets the attitude "
-                                 "loop's"),
+    "gains.omega_c_rad_s": Range(0.1, 10, "rad/s", "position-loop bandwidth; it must stay below the attitude "
+                                 "loop's (12 rad/s by default)"),
     "gains.observer_gain_rad_s": Range(0, 50, "rad/s", "force-observer bandwidth (0: no disturbance estimate)"),
     "gains.sliding_gain_rad_s": Range(0, 50, "rad/s", "sliding-mode gain"),
     "gains.boundary_layer_m_s": Range(0.01, 10, "m/s", "boundary layer; it divides the sliding variable, so "

@@ -1,6 +1,7 @@
 """QGroundControl ``.plan`` import: the mission items and the geofence, converted to local NED
 around the plan's home (``plannedHomePosition``, where the vehicle is to arm) by a flat-earth
-projection (error below 1 mm per km at the distances the envelope allows).
+projection on a sphere of the WGS-84 equatorial radius (the autopilots' own spheres differ by up to
+0.11 %: about 1 m at the envelope's 1000 m).
 
 Items, as QGroundControl writes them (``"type": "SimpleItem"``, 7 ``params``, ``frame``, and for
 items with an altitude also ``AltitudeMode``, ``Altitude``, ``AMSLAltAboveTerrain``):

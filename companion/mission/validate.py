@@ -254,7 +254,7 @@ def _check_order(steps: Sequence[Step]) -> None:
 
 
 def _fmt(p: Vec3) -> str:
-    return "(" + ", ".join(f"{c:g}" for c in p) + ")"
+    return "(" + ", ".join(f"{float(c):.1f}" for c in p) + ")"
 
 
 def _check_path(m: Mission) -> None:
