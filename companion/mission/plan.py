@@ -95,7 +95,7 @@ COMMAND_NAMES = {
     201: "DO_SET_ROI (turns the vehicle)", 211: "DO_GRIPPER", 3000: "DO_VTOL_TRANSITION",
 }
 
-_RELATIVE, _AMSL, _TERRAIN, _MISSION = (3, 6), (0, 5), (10, 11), 2
+_RELATIVE, _AMSL, _TERRAIN = (3, 6), (0, 5), (10, 11)
 _MODE_FRAMES = {1: _RELATIVE, 2: _AMSL, 3: _AMSL, 4: _TERRAIN}
 _MODE_NAMES = {1: "relative to launch", 2: "AMSL", 3: "calculated above terrain", 4: "terrain frame"}
 
