@@ -80,16 +80,24 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _check(args: argparse.Namespace) -> int:
-    from .mission import load_mission
+    """Load each mission exactly as ``fly`` does (one loader): ok and what it flies, or the
+    refusal with file:line and key, exit 2."""
+    from .mission import extent, load_mission
 
     status = 0
     for name in args.missions:
         try:
             m = load_mission(name)
-            print(f"{name}: ok ({len(m.steps)} steps, {m.controller.position} at {m.controller.rate_hz:g} Hz)")
         except ConfigError as exc:
             print(f"companion: error: {exc}", file=sys.stderr)
             status = 2
+            continue
+        far_m, high_m = extent(m)
+        print(f"{name}: ok ({len(m.steps)} steps, {m.controller.position} at {m.controller.rate_hz:g} Hz; "
+              f"flies within {far_m:.1f} m of home and {high_m:.1f} m above it; "
+              f"volume {m.safety.volume.describe()})")
+        if "not flown" in m.description or "not used" in m.description:
+            print(f"{name}: note: {m.description}")
     return status
 
 

@@ -1,12 +1,9 @@
 """Mission files: every mistake is named with its file, line, key and what was expected."""
 
-import json
-import math
-
 import pytest
 
 from companion.config import ConfigError
-from companion.mission import load_mission, load_plan
+from companion.mission import load_mission
 
 GOOD = """name = "m"
 [controller]
@@ -79,7 +76,7 @@ def test_flying_offboard_without_the_offboard_step(tmp_path):
 
 def test_controller_section_errors(tmp_path):
     e = error(tmp_path, GOOD.replace('position = "pd_do"', 'position = "lqr"'))
-    assert e.key == "controller" and "lqr" in str(e) and e.line == 2
+    assert e.key == "controller.position" and "lqr" in str(e) and e.line == 3
     e = error(tmp_path, GOOD.replace('position = "pd_do"', 'position = "pd_do"\nrate_hz = 1000'))
     assert "10..250" in str(e)
 
@@ -95,29 +92,4 @@ def test_bundled_missions_load():
         assert load_mission(p).steps
 
 
-def test_qgroundcontrol_plan_import(tmp_path):
-    """Waypoints at +-0.0001 deg around the home: ~11.1 m north and ~7.5 m east at 47.4 deg."""
-    home = [47.3977, 8.5456, 488.0]
-    items = [
-        {"type": "SimpleItem", "command": 22, "params": [0, 0, 0, None, *home[:2], 3.0]},
-        {"type": "SimpleItem", "command": 16, "params": [0, 0, 0, None, home[0] + 1e-4, home[1], 3.0]},
-        {"type": "SimpleItem", "command": 16, "params": [0, 0, 0, None, home[0], home[1] + 1e-4, 4.0]},
-        {"type": "SimpleItem", "command": 20, "params": [0, 0, 0, 0, 0, 0, 0]},
-    ]
-    p = tmp_path / "m.plan"
-    p.write_text(json.dumps({"mission": {"items": items, "plannedHomePosition": home}}))
-    m = load_mission(p)
-    assert [s.action for s in m.steps] == ["takeoff", "offboard", "goto", "land"]
-    assert m.steps[0].altitude_m == 3.0
-    wp = m.steps[2].waypoints
-    assert math.isclose(wp[0][0], 11.13, rel_tol=0.01) and abs(wp[0][1]) < 1e-9 and wp[0][2] == -3.0
-    assert math.isclose(wp[1][1], 11.13 * math.cos(math.radians(47.3977)), rel_tol=0.01) and wp[1][2] == -4.0
-
-
-def test_plan_with_an_unsupported_item(tmp_path):
-    p = tmp_path / "m.plan"
-    p.write_text(json.dumps({"mission": {"items": [{"type": "SimpleItem", "command": 183, "params": [0] * 7}],
-                                         "plannedHomePosition": [0, 0, 0]}}))
-    with pytest.raises(ConfigError) as e:
-        load_plan(p)
-    assert "183" in str(e.value)
+# QGroundControl plans: tests/companion/test_plan.py

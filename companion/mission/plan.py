@@ -1,0 +1,595 @@
+"""QGroundControl ``.plan`` import: the mission items and the geofence, converted to local NED
+around the plan's home (``plannedHomePosition``, where the vehicle is to arm) by a flat-earth
+projection on a sphere of the WGS-84 equatorial radius (the autopilots' own spheres differ by up to
+0.11 %: about 1 m at the envelope's 1000 m).
+
+Items, as QGroundControl writes them (``"type": "SimpleItem"``, 7 ``params``, ``frame``, and for
+items with an altitude also ``AltitudeMode``, ``Altitude``, ``AMSLAltAboveTerrain``):
+
+- 22 take-off: the altitude (param 7) in the item's frame; a take-off where the vehicle is;
+- 16 waypoint: param 1 hold time [s], param 2 acceptance radius [m] (0: the step default), param 4
+  yaw must be empty (null); 19 loiter-time is a waypoint whose param 1 is the hold time;
+- 178 DO_CHANGE_SPEED: param 2 [m/s] is the speed of the waypoints that follow (-1: unchanged,
+  -2: back to the mission default); speed type (param 1) 0 air or 1 ground speed (no difference for
+  these setpoints); climb/descent speeds (2, 3) and a throttle (param 3) are refused;
+- 93 NAV_DELAY: hold (or wait on the ground) param 1 seconds;
+- 21 land: fly to its latitude/longitude at the current height (unless empty or 0/0), then land;
+  20 RTL: fly home at the current height, then land. Nothing may follow either;
+- camera and gimbal commands (and DO_LAND_START) leave the path alone: they are skipped and listed
+  in the mission's description; any other command is refused with its name.
+
+Altitude frames (``frame``): 3 relative to home (param 7 as it is); 0 AMSL (param 7 minus
+``plannedHomePosition``'s altitude: 498 m with home at 488 m is 10 m above home); 10 terrain is
+refused (the companion flies heights above home and has no terrain model). ``AltitudeMode`` must
+agree with the frame (1 relative <-> 3, 2 AMSL <-> 0, 3 "calculated above terrain" <-> 0, whose
+param 7 QGroundControl computed as AMSL from its terrain data and is flown as such; 4 terrain
+frame <-> 10, refused), and ``Altitude`` with param 7 where the mode says they are the same number.
+
+Geofence: every circle and polygon becomes a fence of the mission's safety volume, inclusion or
+exclusion as flagged; with an inclusion fence the fence, not the default cylinder, bounds the
+horizontal extent (up to the envelope's 1000 m). The height limit is the default volume's.
+
+Errors name the file, the JSON line, the item path (``mission.items[3].params[6]``) and what was
+expected; checks after conversion (the volume, the envelope) are reported against the item that
+produced the offending step.
+
+:func:`load_plan` flies a plan with the default controller, failsafes and volume;
+:func:`import_plan` gives the converted steps and fences to a TOML mission that names the plan
+(``plan = "survey.plan"``) and sets its own.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeGuard
+
+from companion.config import ConfigError, read_text
+from companion.control.params import TrajectoryParams
+from companion.control.vector import Vec3
+
+from .envelope import (
+    ENVELOPE,
+    MAX_FENCE_VERTICES,
+    MAX_FENCES,
+    MAX_FILE_BYTES,
+    MAX_PLAN_ITEMS,
+    MAX_WAYPOINTS,
+    Problem,
+    check_range,
+    safe_component,
+)
+from .model import Mission, SafetyConfig, Step
+from .safety import FenceCircle, FencePolygon, SafetyVolume, Vec2
+from .validate import leg_time_s, validate
+
+__all__ = ["load_plan", "import_plan", "ImportedPlan", "json_line", "EARTH_RADIUS_M", "COMMAND_NAMES"]
+
+EARTH_RADIUS_M = 6378137.0
+"""WGS-84 equatorial radius"""
+
+Path_ = tuple[str | int, ...]
+"""a place in the JSON document: ("mission", "items", 3, "params", 6)"""
+
+TAKEOFF, WAYPOINT, LOITER_TIME, LAND, RTL, DELAY, CHANGE_SPEED = 22, 16, 19, 21, 20, 93, 178
+
+SKIPPED = {
+    189: "DO_LAND_START (a marker)", 203: "DO_DIGICAM_CONTROL (camera)", 205: "DO_MOUNT_CONTROL (gimbal)",
+    206: "DO_SET_CAM_TRIGG_DIST (camera)", 214: "DO_SET_CAM_TRIGG_INTERVAL (camera)",
+    530: "SET_CAMERA_MODE (camera)", 531: "SET_CAMERA_ZOOM (camera)", 532: "SET_CAMERA_FOCUS (camera)",
+    1000: "DO_GIMBAL_MANAGER_PITCHYAW (gimbal)", 1001: "DO_GIMBAL_MANAGER_CONFIGURE (gimbal)",
+    2000: "IMAGE_START_CAPTURE (camera)", 2001: "IMAGE_STOP_CAPTURE (camera)",
+    2500: "VIDEO_START_CAPTURE (camera)", 2501: "VIDEO_STOP_CAPTURE (camera)",
+}
+"""commands that leave the flight path alone: skipped, and listed in the description"""
+
+COMMAND_NAMES = {
+    17: "NAV_LOITER_UNLIM (never ends)", 18: "NAV_LOITER_TURNS", 31: "NAV_LOITER_TO_ALT", 82: "NAV_SPLINE_WAYPOINT",
+    84: "NAV_VTOL_TAKEOFF", 85: "NAV_VTOL_LAND", 112: "CONDITION_DELAY", 114: "CONDITION_DISTANCE",
+    115: "CONDITION_YAW", 177: "DO_JUMP (a loop)", 179: "DO_SET_HOME", 181: "DO_SET_RELAY", 183: "DO_SET_SERVO",
+    184: "DO_REPEAT_SERVO", 195: "DO_SET_ROI_LOCATION (turns the vehicle)", 197: "DO_SET_ROI_NONE",
+    201: "DO_SET_ROI (turns the vehicle)", 211: "DO_GRIPPER", 3000: "DO_VTOL_TRANSITION",
+}
+
+_RELATIVE, _AMSL, _TERRAIN = (3, 6), (0, 5), (10, 11)
+_MODE_FRAMES = {1: _RELATIVE, 2: _AMSL, 3: _AMSL, 4: _TERRAIN}
+_MODE_NAMES = {1: "relative to launch", 2: "AMSL", 3: "calculated above terrain", 4: "terrain frame"}
+
+
+def _key(where: Path_) -> str:
+    out = ""
+    for part in where:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+class _Refusal(Exception):
+    def __init__(self, where: Path_, reason: str) -> None:
+        super().__init__(reason)
+        self.where = where
+        self.reason = reason
+
+
+def _number(x: object) -> TypeGuard[float]:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+@dataclass
+class _Waypoint:
+    ned: Vec3
+    speed_m_s: float | None
+    speed_from: Path_ | None
+    hold_s: float
+    tolerance_m: float
+    where: Path_
+
+
+class _Converter:
+    """Items in, steps out, and where each step came from (for the errors found after conversion)."""
+
+    def __init__(self, home: list[Any], has_home_alt: bool) -> None:
+        self.lat0, self.lon0 = float(home[0]), float(home[1])
+        self.home_alt = float(home[2]) if has_home_alt else math.nan
+        self.steps: list[Step] = []
+        self.origin: dict[str, Path_] = {}
+        self.pending: list[_Waypoint] = []
+        self.speed: float | None = None
+        self.speed_from: Path_ | None = None
+        self.phase = "ground"  # -> "air" -> "done"
+        self.ended_by: Path_ | None = None
+        self.pos: Vec3 = (0.0, 0.0, 0.0)
+        self.skipped: list[str] = []
+        self.waypoints = 0
+        """all the waypoints so far (MAX_WAYPOINTS bounds them)"""
+
+    # --- geometry ---------------------------------------------------------------------------
+
+    def ne(self, lat: float, lon: float) -> Vec2:
+        dlon = (lon - self.lon0 + 180.0) % 360.0 - 180.0
+        return (math.radians(lat - self.lat0) * EARTH_RADIUS_M,
+                math.radians(dlon) * EARTH_RADIUS_M * math.cos(math.radians(self.lat0)))
+
+    def coordinate(self, lat: object, lon: object, where: Path_) -> Vec2:
+        if not (_number(lat) and _number(lon) and abs(lat) <= 90.0 and abs(lon) <= 180.0):
+            raise _Refusal(where, f"expected latitude and longitude in degrees, got {[lat, lon]!r}")
+        return self.ne(float(lat), float(lon))
+
+    def height(self, item: dict[str, Any], where: Path_) -> float:
+        """Param 7 as metres above home, from the item's frame (and its AltitudeMode, if any)."""
+        frame, alt = item.get("frame"), item["params"][6]
+        if not _number(alt):
+            raise _Refusal(where + ("params", 6), f"expected an altitude in metres, got {alt!r}")
+        if "AltitudeMode" in item:
+            mode = item["AltitudeMode"]
+            if not isinstance(mode, int) or isinstance(mode, bool) or mode not in _MODE_FRAMES:
+                raise _Refusal(where + ("AltitudeMode",), f"expected 1 (relative to launch), 2 (AMSL), 3 (calculated "
+                               f"above terrain) or 4 (terrain frame), got {mode!r}")
+            if frame not in _MODE_FRAMES[mode]:
+                raise _Refusal(where + ("frame",), f"AltitudeMode {mode} ({_MODE_NAMES[mode]}) expects frame "
+                               f"{_MODE_FRAMES[mode][0]}, got {frame!r}: the item contradicts itself")
+            same = item.get("Altitude") if mode in (1, 2) else item.get("AMSLAltAboveTerrain") if mode == 3 else alt
+            if not (_number(same) and abs(float(same) - float(alt)) <= 0.01):
+                k = "Altitude" if mode in (1, 2) else "AMSLAltAboveTerrain"
+                raise _Refusal(where + (k,), f"expected {alt!r}, the altitude of params[6] for AltitudeMode {mode} "
+                               f"({_MODE_NAMES[mode]}), got {same!r}")
+        if frame in _RELATIVE:
+            return float(alt)
+        if frame in _AMSL:
+            if math.isnan(self.home_alt):
+                raise _Refusal(("mission", "plannedHomePosition", 2), "expected home's altitude (AMSL, m): the plan "
+                               f"has AMSL altitudes (item frame {frame})")
+            return float(alt) - self.home_alt
+        if frame in _TERRAIN:
+            raise _Refusal(where + ("frame",), f"frame {frame} is terrain-relative (MAV_FRAME_GLOBAL_TERRAIN_ALT): the "
+                           "companion flies heights above home and has no terrain model; in QGroundControl choose "
+                           "'Relative to launch' or 'AMSL'")
+        raise _Refusal(where + ("frame",), f"expected frame 3 (relative to home), 0 (AMSL) or 10 (terrain), "
+                       f"got {frame!r}")
+
+    # --- items --------------------------------------------------------------------------------
+
+    def item(self, item: object, where: Path_) -> None:
+        if not isinstance(item, dict):
+            raise _Refusal(where, "expected a mission item (an object)")
+        if item.get("type") == "ComplexItem":
+            raise _Refusal(where + ("type",), f"a complex item ({str(item.get('complexItemType'))[:40]!r}) is not "
+                           "supported; expected simple items")
+        if item.get("type") != "SimpleItem":
+            raise _Refusal(where + ("type",), f"expected \"SimpleItem\", got {str(item.get('type'))[:40]!r}")
+        cmd, params = item.get("command"), item.get("params")
+        if not isinstance(params, list) or len(params) != 7:
+            raise _Refusal(where + ("params",), "expected 7 params (null for the unused ones)")
+        for k, v in enumerate(params):
+            if (v is not None and not isinstance(v, int | float)) or isinstance(v, bool):
+                raise _Refusal(where + ("params", k), f"expected a number or null, got {str(v)[:40]!r}")
+        if not isinstance(cmd, int) or isinstance(cmd, bool):
+            raise _Refusal(where + ("command",), f"expected a MAVLink command number, got {str(cmd)[:40]!r}")
+        if self.phase == "done":
+            assert self.ended_by is not None
+            raise _Refusal(where, f"nothing may follow the land or RTL item {_key(self.ended_by)}: the mission ends "
+                           "there")
+        if cmd in SKIPPED:
+            self.skipped.append(f"{where[-1]} {SKIPPED[cmd]}")
+        elif cmd == TAKEOFF:
+            self.takeoff(item, params, where)
+        elif cmd in (WAYPOINT, LOITER_TIME):
+            self.waypoint(item, params, where, cmd)
+        elif cmd == CHANGE_SPEED:
+            self.change_speed(params, where)
+        elif cmd == DELAY:
+            self.delay(params, where)
+        elif cmd in (LAND, RTL):
+            self.finish(item, params, where, cmd)
+        else:
+            name = COMMAND_NAMES.get(cmd, "")
+            raise _Refusal(where + ("command",), f"command {cmd}{' ' + name if name else ''} is not supported; "
+                           "expected 22 take-off, 16 waypoint, 19 loiter time, 178 change speed, 93 delay, 21 land, "
+                           "20 RTL, or a camera/gimbal command (skipped)")
+
+    def takeoff(self, item: dict[str, Any], params: list[Any], where: Path_) -> None:
+        if self.phase != "ground":
+            raise _Refusal(where, "a second take-off: expected one, before the waypoints")
+        h = self.height(item, where)
+        lat, lon = params[4], params[5]
+        if lat is not None and lon is not None and (lat, lon) != (0, 0):
+            off = math.hypot(*self.coordinate(lat, lon, where + ("params", 4)))
+            if off > 5.0:
+                raise _Refusal(where + ("params", 4), f"a take-off {off:.0f} m from plannedHomePosition: the vehicle "
+                               "takes off where it is, expected within 5 m of home")
+        self.add(Step("takeoff", "take-off", altitude_m=h), where, {"altitude_m": where + ("params", 6)})
+        self.add(Step("offboard", "offboard"), where)
+        self.phase = "air"
+        self.pos = (0.0, 0.0, -h)
+
+    def waypoint(self, item: dict[str, Any], params: list[Any], where: Path_, cmd: int) -> None:
+        if self.phase != "air":
+            raise _Refusal(where, "a waypoint before the take-off item (22): expected the take-off first")
+        if cmd == WAYPOINT and params[3] is not None and not math.isnan(params[3]):
+            raise _Refusal(where + ("params", 3), f"a waypoint yaw is not supported; expected null (QGroundControl's "
+                           f"empty heading), got {params[3]!r}")
+        n, e = self.coordinate(params[4], params[5], where + ("params", 4))
+        h = self.height(item, where)
+        hold = params[0] or 0.0
+        if not 0.0 <= hold <= ENVELOPE["steps[].hold_s"].hi:
+            raise _Refusal(where + ("params", 0), f"expected a hold time of {ENVELOPE['steps[].hold_s'].text()}, "
+                           f"got {hold!r}")
+        radius = params[1] if cmd == WAYPOINT and params[1] else Step.tolerance_m
+        self.push(_Waypoint((n, e, -h), self.speed, self.speed_from, float(hold), float(radius), where))
+
+    def change_speed(self, params: list[Any], where: Path_) -> None:
+        kind, speed, throttle = params[0], params[1], params[2]
+        if kind not in (0, 1):
+            raise _Refusal(where + ("params", 0), f"expected speed type 0 (air) or 1 (ground), got {kind!r}: climb "
+                           "and descent speeds are not supported")
+        if throttle not in (None, -1, 0):
+            raise _Refusal(where + ("params", 2), f"expected no throttle (-1), got {throttle!r}: a multicopter's "
+                           "offboard flight sets no throttle")
+        if speed == -1:
+            return
+        if speed == -2:
+            self.speed, self.speed_from = None, where
+            return
+        try:
+            check_range(_key(where + ("params", 1)), speed if _number(speed) else math.nan, "steps[].speed_m_s")
+        except Problem as exc:
+            raise _Refusal(where + ("params", 1), exc.reason) from None
+        self.speed, self.speed_from = float(speed), where + ("params", 1)
+
+    def delay(self, params: list[Any], where: Path_) -> None:
+        seconds = params[0]
+        if not _number(seconds) or seconds < 0:
+            raise _Refusal(where + ("params", 0), f"expected a delay in seconds, got {seconds!r} (a time of day is "
+                           "not supported)")
+        if seconds == 0:
+            return
+        self.flush()
+        action = "hold" if self.phase == "air" else "wait"
+        self.add(Step(action, f"delay {seconds:g} s", duration_s=float(seconds)), where,
+                 {"duration_s": where + ("params", 0)})
+
+    def finish(self, item: dict[str, Any], params: list[Any], where: Path_, cmd: int) -> None:
+        if self.phase != "air":
+            raise _Refusal(where, "a land or RTL item before the take-off: expected the take-off first")
+        if cmd == RTL:
+            target: Vec2 | None = (0.0, 0.0)
+        elif params[4] is None or params[5] is None or (params[4], params[5]) == (0, 0):
+            target = None
+        else:
+            target = self.coordinate(params[4], params[5], where + ("params", 4))
+        if target is not None:
+            last = self.pending[-1].ned if self.pending else self.pos
+            if math.dist(target, last[:2]) > Step.tolerance_m:
+                self.push(_Waypoint((target[0], target[1], last[2]), self.speed, self.speed_from, 0.0,
+                                    Step.tolerance_m, where))
+        self.flush()
+        self.add(Step("land", "return and land" if cmd == RTL else "land"), where)
+        self.phase, self.ended_by = "done", where
+
+    # --- steps --------------------------------------------------------------------------------
+
+    def push(self, wp: _Waypoint) -> None:
+        self.pending.append(wp)
+        self.waypoints += 1
+
+    def add(self, step: Step, where: Path_, fields: dict[str, Path_] | None = None) -> None:
+        """Append ``step``, made from the item at ``where`` (its ``fields`` from those places)."""
+        key = f"steps[{len(self.steps)}]"
+        self.origin[key] = where
+        for name, place in (fields or {}).items():
+            self.origin[f"{key}.{name}"] = place
+        self.steps.append(step)
+
+    def flush(self) -> None:
+        """Consecutive waypoints with the same speed, hold and radius become one goto step, its
+        timeout long enough for its longest leg."""
+        group: list[_Waypoint] = []
+        for wp in self.pending:
+            if group and (wp.speed_m_s, wp.hold_s, wp.tolerance_m) != (
+                    group[0].speed_m_s, group[0].hold_s, group[0].tolerance_m):
+                self.goto(group)
+                group = []
+            group.append(wp)
+        if group:
+            self.goto(group)
+        self.pending = []
+
+    def goto(self, group: list[_Waypoint]) -> None:
+        traj = TrajectoryParams()
+        speed = group[0].speed_m_s or traj.max_speed_m_s
+        legs, pos = [], self.pos
+        for wp in group:
+            if all(map(math.isfinite, wp.ned)):
+                legs.append(math.dist(pos, wp.ned))
+                pos = wp.ned
+        # half as long again as the reference needs for the longest leg: room for the vehicle's lag
+        timeout = min(3600.0, max(60.0, math.ceil(1.5 * leg_time_s(max(legs, default=0.0), speed, traj))))
+        first = group[0]
+        step = Step("goto", f"waypoints {first.where[-1]}..{group[-1].where[-1]}" if len(group) > 1 else
+                    f"waypoint {first.where[-1]}", waypoints=tuple(wp.ned for wp in group), speed_m_s=first.speed_m_s,
+                    tolerance_m=first.tolerance_m, hold_s=first.hold_s, timeout_s=timeout)
+        fields = {f"waypoints[{j}]": wp.where for j, wp in enumerate(group)}
+        fields.update({"tolerance_m": first.where + ("params", 1), "hold_s": first.where + ("params", 0)})
+        if first.speed_from is not None:
+            fields["speed_m_s"] = first.speed_from
+        self.add(step, first.where, fields)
+        self.pos = pos
+
+
+def _fences(fence: object, conv: _Converter) -> tuple[tuple[FenceCircle, ...], tuple[FencePolygon, ...]]:
+    if fence is None:
+        return (), ()
+    base: Path_ = ("geoFence",)
+    if not isinstance(fence, dict):
+        raise _Refusal(base, "expected an object with circles and polygons")
+    circles_raw, polygons_raw = fence.get("circles", []), fence.get("polygons", [])
+    if not isinstance(circles_raw, list) or not isinstance(polygons_raw, list):
+        raise _Refusal(base, "expected lists \"circles\" and \"polygons\"")
+    if len(circles_raw) + len(polygons_raw) > MAX_FENCES:
+        raise _Refusal(base, f"expected at most {MAX_FENCES} fences, got {len(circles_raw) + len(polygons_raw)}")
+    circles = []
+    for i, c in enumerate(circles_raw):
+        w: Path_ = base + ("circles", i)
+        body = c.get("circle") if isinstance(c, dict) else None
+        if not isinstance(c, dict) or not isinstance(body, dict) or not isinstance(body.get("center"), list) \
+                or len(body["center"]) < 2:
+            raise _Refusal(w, "expected {\"circle\": {\"center\": [lat, lon], \"radius\": r}, \"inclusion\": ...}")
+        inclusion = c.get("inclusion")
+        if not isinstance(inclusion, bool):
+            raise _Refusal(w + ("inclusion",), f"expected true or false, got {inclusion!r}")
+        radius = body.get("radius")
+        if not _number(radius):
+            raise _Refusal(w + ("circle", "radius"), f"expected a radius in metres, got {radius!r}")
+        center = conv.coordinate(body["center"][0], body["center"][1], w + ("circle", "center"))
+        circles.append(FenceCircle(center, float(radius), inclusion))
+    polygons = []
+    for i, poly in enumerate(polygons_raw):
+        w = base + ("polygons", i)
+        corners = poly.get("polygon") if isinstance(poly, dict) else None
+        if not isinstance(poly, dict) or not isinstance(corners, list):
+            raise _Refusal(w, "expected {\"polygon\": [[lat, lon], ...], \"inclusion\": ...}")
+        inclusion = poly.get("inclusion")
+        if not isinstance(inclusion, bool):
+            raise _Refusal(w + ("inclusion",), f"expected true or false, got {inclusion!r}")
+        if not 3 <= len(corners) <= MAX_FENCE_VERTICES:
+            raise _Refusal(w + ("polygon",), f"expected 3..{MAX_FENCE_VERTICES} corners, got {len(corners)}")
+        vertices = []
+        for j, v in enumerate(corners):
+            if not isinstance(v, list) or len(v) < 2:
+                raise _Refusal(w + ("polygon", j), f"expected [latitude, longitude], got {str(v)[:40]}")
+            vertices.append(conv.coordinate(v[0], v[1], w + ("polygon", j)))
+        polygons.append(FencePolygon(tuple(vertices), inclusion))
+    return tuple(circles), tuple(polygons)
+
+
+@dataclass(frozen=True)
+class ImportedPlan:
+    """A plan converted: its steps and fences, and where in its JSON each came from."""
+
+    path: Path
+    text: str
+    steps: tuple[Step, ...]
+    circles: tuple[FenceCircle, ...]
+    polygons: tuple[FencePolygon, ...]
+    description: str
+    origin: dict[str, Path_]
+    """``steps[i]``, ``steps[i].waypoints[j]``, ... -> the item (or param) that made it"""
+
+    @property
+    def has_inclusion_fence(self) -> bool:
+        return any(f.inclusion for f in self.circles) or any(f.inclusion for f in self.polygons)
+
+    def error(self, problem: Problem, circles_before: int = 0, polygons_before: int = 0) -> ConfigError | None:
+        """``problem`` (a key of the mission made with this plan's steps, and its fences appended
+        after ``circles_before`` / ``polygons_before`` others) as a refusal naming this plan's JSON
+        line and item path; None if the key is not this plan's."""
+        origin = dict(self.origin)
+        for i in range(len(self.circles)):
+            k, w = f"safety.volume.circles[{circles_before + i}]", ("geoFence", "circles", i)
+            origin.update({k: w, f"{k}.center_ne_m": w + ("circle", "center"),
+                           f"{k}.radius_m": w + ("circle", "radius")})
+        for i, poly in enumerate(self.polygons):
+            k, w = f"safety.volume.polygons[{polygons_before + i}]", ("geoFence", "polygons", i)
+            origin.update({k: w, f"{k}.vertices_ne_m": w + ("polygon",)})
+            origin.update({f"{k}.vertices_ne_m[{j}]": w + ("polygon", j) for j in range(len(poly.vertices_ne_m))})
+        if not circles_before and not polygons_before and (self.circles or self.polygons):
+            origin["safety.volume"] = ("geoFence",)
+        where = _origin_of(problem.key, origin)
+        if where is None:
+            return None
+        return ConfigError(self.path, json_line(self.text, where), _key(where), problem.reason)
+
+
+def import_plan(path: str | Path) -> ImportedPlan:
+    """Read and convert a QGroundControl ``.plan`` (see the module docstring); a refusal during
+    reading or conversion is a :class:`ConfigError` with the JSON line and item path. The whole
+    mission is checked by the caller (:func:`load_plan`, or a TOML mission's ``plan = ...``)."""
+    p = Path(path)
+    text = read_text(p, MAX_FILE_BYTES, syntax="json")
+    try:
+        plan = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(p, exc.lineno, "", f"not valid JSON: {exc.msg}") from None
+    except (ValueError, RecursionError) as exc:  # e.g. an integer of more than 4300 digits
+        m = re.search(r"[0-9]{4000,}", text)
+        raise ConfigError(p, text.count("\n", 0, m.start()) + 1 if m else None, "",
+                          f"not valid JSON: {str(exc)[:100]}") from None
+    try:
+        conv, circles, polygons = _convert(plan)
+    except _Refusal as exc:
+        raise ConfigError(p, json_line(text, exc.where), _key(exc.where), exc.reason) from None
+    description = f"imported from {safe_component(p.stem)}.plan (QGroundControl)"
+    if conv.skipped:
+        description += "; not flown: items " + ", ".join(conv.skipped)
+    rally = plan.get("rallyPoints")
+    if isinstance(rally, dict) and rally.get("points"):
+        description += "; rally points not used (RTL returns home)"
+    if len(description) > 1000:
+        description = description[:996] + " ..."
+    return ImportedPlan(p, text, tuple(conv.steps), circles, polygons, description, conv.origin)
+
+
+def load_plan(path: str | Path) -> Mission:
+    """A QGroundControl ``.plan`` as a :class:`Mission` with the default controller, failsafes and
+    volume (cylinder 50 m, 30 m high; with an inclusion fence, the fence bounds the extent, up to
+    1000 m), checked whole like a TOML mission; every refusal is a :class:`ConfigError` naming the
+    file, the JSON line, the item path and what was expected."""
+    imp = import_plan(path)
+    volume = SafetyVolume(circles=imp.circles, polygons=imp.polygons)
+    if imp.has_inclusion_fence:
+        volume = dataclasses.replace(volume, max_distance_m=float(ENVELOPE["safety.volume.max_distance_m"].hi))
+    mission = Mission(name=safe_component(imp.path.stem), description=imp.description,
+                      safety=SafetyConfig(volume=volume), steps=imp.steps)
+    try:
+        validate(mission)
+    except Problem as exc:
+        raise imp.error(exc) or ConfigError(imp.path, None, exc.key, exc.reason) from None
+    return mission
+
+
+def _convert(plan: Any) -> tuple[_Converter, tuple[FenceCircle, ...], tuple[FencePolygon, ...]]:
+    if not isinstance(plan, dict) or plan.get("fileType") != "Plan":
+        raise _Refusal(("fileType",) if isinstance(plan, dict) else (), "expected a QGroundControl plan "
+                       "(\"fileType\": \"Plan\")")
+    if plan.get("version", 1) != 1:
+        raise _Refusal(("version",), f"expected plan file version 1, got {plan.get('version')!r}")
+    mission = plan.get("mission")
+    if not isinstance(mission, dict):
+        raise _Refusal(("mission",), "expected the mission object")
+    home, items = mission.get("plannedHomePosition"), mission.get("items")
+    if not (isinstance(home, list) and len(home) == 3 and _number(home[0]) and _number(home[1])
+            and abs(home[0]) <= 89.0 and abs(home[1]) <= 180.0):
+        raise _Refusal(("mission", "plannedHomePosition"), f"expected [latitude, longitude, altitude AMSL] of home, "
+                       f"latitude within 89 deg, got {str(home)[:80]}")
+    if not isinstance(items, list) or not items:
+        raise _Refusal(("mission", "items"), "expected a list of mission items")
+    if len(items) > MAX_PLAN_ITEMS:
+        raise _Refusal(("mission", "items", MAX_PLAN_ITEMS), f"expected at most {MAX_PLAN_ITEMS} items, "
+                       f"got {len(items)}")
+    conv = _Converter(home, _number(home[2]))
+    for n, item in enumerate(items):
+        conv.item(item, ("mission", "items", n))
+        if conv.waypoints > MAX_WAYPOINTS:
+            raise _Refusal(("mission", "items", n), f"expected at most {MAX_WAYPOINTS} waypoints")
+    if conv.phase == "ground":
+        raise _Refusal(("mission", "items"), "expected a take-off item (command 22)")
+    if conv.phase == "air":
+        raise _Refusal(("mission", "items", len(items) - 1), "the mission ends in the air: expected a land (21) or "
+                       "RTL (20) item last")
+    circles, polygons = _fences(plan.get("geoFence"), conv)
+    return conv, circles, polygons
+
+
+def _origin_of(key: str, origin: dict[str, Path_]) -> Path_ | None:
+    """The plan path of the longest prefix of ``key`` that a conversion recorded."""
+    while key:
+        if key in origin:
+            return origin[key]
+        cut = max(key.rfind("."), key.rfind("["))
+        key = key[:cut] if cut > 0 else ""
+    return None
+
+
+# --- lines in JSON ------------------------------------------------------------------------------
+
+_TOKEN = re.compile(r'"(?:[^"\\]|\\.)*"|[{}\[\],:]|[^\s{}\[\],:"]+')
+
+
+def json_line(text: str, where: Path_) -> int | None:
+    """1-based line where the value at ``where`` starts in the JSON ``text`` (the nearest enclosing
+    value's line if it is absent), or None. A tokenizer, not a parser: it runs only for errors."""
+    stack: list[list[Any]] = []  # [kind "o"/"a", key or index, state]
+    line, last, best = 1, 0, None
+    for m in _TOKEN.finditer(text):
+        tok, start = m.group(), m.start()
+        line += text.count("\n", last, start)
+        last = start
+        top = stack[-1] if stack else None
+        if top is not None and top[0] == "o" and top[2] == "key":
+            if tok.startswith('"'):
+                try:
+                    top[1] = json.loads(tok)
+                except ValueError:
+                    top[1] = None
+                top[2] = "colon"
+            elif tok == "}":
+                stack.pop()
+                _after_value(stack)
+            continue
+        if tok == ":":
+            if top is not None:
+                top[2] = "value"
+            continue
+        if tok == ",":
+            if top is not None:
+                if top[0] == "o":
+                    top[2] = "key"
+                else:
+                    top[1] += 1
+                    top[2] = "value"
+            continue
+        if tok in "]}":
+            if stack:
+                stack.pop()
+            _after_value(stack)
+            continue
+        here = tuple(frame[1] for frame in stack)
+        if here == where:
+            return line
+        if where[: len(here)] == here:
+            best = line
+        if tok == "{":
+            stack.append(["o", None, "key"])
+        elif tok == "[":
+            stack.append(["a", 0, "value"])
+        else:
+            _after_value(stack)
+    return best
+
+
+def _after_value(stack: list[list[Any]]) -> None:
+    if stack:
+        stack[-1][2] = "comma"
