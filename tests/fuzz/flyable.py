@@ -19,10 +19,10 @@ import re
 from companion.control.trajectory import ReferenceFilter
 from companion.mission import ENVELOPE, Mission
 from companion.mission.model import ALLOWED
-from companion.offboard import OffboardController
-from companion.safety import SetpointGuard
-from companion.state import VehicleState
-from companion.thrust_scale import ThrustScaleEstimator
+from companion.flight.offboard import OffboardController
+from companion.flight.guard import SetpointGuard
+from companion.link.state import VehicleState
+from companion.flight.thrust_scale import ThrustScaleEstimator
 
 DEDICATED = {"steps", "safety.volume.north_m", "safety.volume.east_m", "safety.volume.circles",
              "safety.volume.polygons"}
