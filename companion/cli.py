@@ -40,6 +40,9 @@ def _fly(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         print(f"companion: error: {exc}", file=sys.stderr)
         return 2
+    if args.thrust_max is not None and not 1.0 <= args.thrust_max <= 500.0:
+        print(f"companion: error: --thrust-max {args.thrust_max:g}: expected 1..500 N", file=sys.stderr)
+        return 2
     try:
         parse_endpoint(args.connect)
     except ValueError as exc:

@@ -556,6 +556,11 @@ class Flight:
         if flying:
             self.taking_over = self.ours = True
             self.log(f"taking over an armed vehicle in {st.mode}: its take-off steps are skipped")
+        volume = getattr(self.mission.safety, "volume", None)
+        where = volume.breach(st.pos_ned_m) if volume is not None else None
+        if where is not None and not flying:
+            raise MissionAbort(f"the vehicle is outside its safety volume before take-off ({where}): the "
+                               "autopilot's local origin is not where it stands (moved after boot?)")
 
     async def _preflight(self) -> dict:
         """Read the autopilot's failsafe settings and print them, with warnings (preflight.py)."""
