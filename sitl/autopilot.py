@@ -427,7 +427,7 @@ class Autopilot:
                 return CommandResult(MavResult.ACCEPTED)  # already down: nothing to do
             return self._deny("RTL denied: not flying")
         if self.failsafe is not None:
-            self._say(Severity.INFO, "Failsafe cleared by mode change")
+            self._say(Severity.WARNING, "Failsafe cleared by mode change")
             self.failsafe = None
         if mode not in (Mode.TAKEOFF, Mode.LAND, Mode.RTL):
             self.user_mode = mode

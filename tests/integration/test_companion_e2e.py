@@ -363,3 +363,27 @@ def test_without_an_imu_stream_the_force_observer_uses_differentiated_velocity(s
     tilt = np.degrees(2 * np.arctan2(np.hypot(d["qx"], d["qy"]), np.hypot(d["qw"], d["qz"])))
     assert abs(np.mean(tilt[late]) - 45.0) < 5.0, np.mean(tilt[late])
     assert mitm.dropped > 100
+
+
+def test_after_its_own_stall_the_companion_never_cancels_the_failsafe_landing(sitl, companion, client):
+    """The companion is stopped (SIGSTOP) for 3 s of wall time mid-hold: the vehicle waits 1 s for it,
+    then its offboard-loss failsafe (after COM_OF_LOSS_T) starts descending. When the companion wakes,
+    nothing it had queued — setpoints, a hold — may take the vehicle back: it sees the vehicle out of
+    offboard, says so, leaves it to the autopilot (exit 1), and the vehicle lands and disarms without
+    its failsafe ever being cleared."""
+    s = sitl(*WAIT, speedup=2.0)
+    c = companion("missions/hold.toml", s.url)
+    c.wait_for("step hold")
+    time.sleep(1.0)
+    c.proc.send_signal(signal.SIGSTOP)
+    time.sleep(3.0)
+    c.proc.send_signal(signal.SIGCONT)
+    code, out = c.finish(timeout=120)
+    assert code == 1, out
+    assert "left offboard" in out and "has control: the companion stops here" in out, out
+    obs = client(s.url, source_system=200)
+    obs.wait("HEARTBEAT", lambda h: not h.base_mode & 128, timeout=60)
+    report = s.stop()
+    assert not report["armed"]
+    assert any("offboard lost" in text for _, text in report["events"]), report["events"]
+    assert not any("cleared" in text for _, text in report["events"]), report["events"]
