@@ -100,7 +100,11 @@ class Px4Sih:
 
     def start(self) -> Px4Sih:
         if not _port_free(self.api_port):
-            raise RuntimeError(f"UDP {self.api_port} is in use: another PX4 instance {self.instance} or client?")
+            free = next((n for n in range(10) if _port_free(14540 + n) and _port_free(14580 + n)
+                         and not Path(f"/tmp/px4_lock-{n}").exists()), None)
+            if free is None:
+                raise RuntimeError(f"UDP {self.api_port} is in use, and so are the ports of instances 0-9")
+            self.instance = free  # another instance or client holds this one's ports: take a free one
         self.workdir = Path(tempfile.mkdtemp(prefix=f"px4sih-{self.instance}-"))
         env = {k: v for k, v in os.environ.items() if not k.startswith("PX4_PARAM_")}
         env.update(PX4_SYS_AUTOSTART="10040", PX4_SIMULATOR="sihsim", PX4_SIM_MODEL="sihsim_quadx",

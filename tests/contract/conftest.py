@@ -67,3 +67,28 @@ def wait(m: mavutil.mavfile, kind: str, cond=lambda msg: True, timeout: float = 
         if msg is not None and cond(msg):
             return msg
     raise AssertionError(f"no {kind} within {timeout} s")
+
+
+def drain(m: mavutil.mavfile) -> dict:
+    """Read everything waiting; the newest message of each kind (a client that streams setpoints
+    reads nothing meanwhile, and the first message of a kind it reads after is an old one)."""
+    newest: dict = {}
+    while (msg := m.recv_match(blocking=False)) is not None:
+        if msg.get_srcComponent() == 1:
+            newest[msg.get_type()] = msg
+    return newest
+
+
+def latest(m: mavutil.mavfile, kind: str, timeout: float = 5.0):
+    """The newest message of ``kind`` now (waits for one if none is waiting)."""
+    found = drain(m).get(kind)
+    return found if found is not None else wait(m, kind, timeout=timeout)
+
+
+def stream(m: mavutil.mavfile, sysid: int, seconds: float, q, thrust: float, type_mask: int = 3) -> None:
+    """SET_ATTITUDE_TARGET at 50 Hz of wall time for ``seconds``, reading (and dropping) what arrives."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        m.mav.set_attitude_target_send(0, sysid, 1, type_mask, list(q), 0, 0, 0, thrust)
+        drain(m)
+        time.sleep(0.02)

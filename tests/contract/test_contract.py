@@ -11,7 +11,7 @@ from pymavlink import mavutil
 
 from companion.mavlink.modes import COPTER_MODES, px4_custom_mode
 
-from .conftest import wait
+from .conftest import latest, stream, wait
 
 pytestmark = [pytest.mark.integration, pytest.mark.contract]
 
@@ -66,61 +66,48 @@ def test_px4_after_a_disarm_returns_to_the_users_mode_and_refuses_to_arm_there_w
     assert command(m, px4, 400, 1) != 0  # no stream in OFFBOARD: refused
 
 
-def test_px4_offboard_loss_leaves_offboard_and_descends_without_holding(px4):
-    """The stream stops in OFFBOARD: out of OFFBOARD within COM_OF_LOSS_T + 1 s of vehicle time, then
-    it descends at once (no 5 s hold: below its altitude by 0.5 m within 2.5 s after leaving) and
-    disarms on the ground."""
-    m = px4.connect()
+def _airborne_in_offboard(m, px4, hover: float = 0.5) -> None:
     heartbeat(m)
     armable(m)
-    m.mav.param_request_read_send(px4.sysid, 1, b"COM_OF_LOSS_T", -1)
-    loss_t = wait(m, "PARAM_VALUE", lambda p: p.param_id == "COM_OF_LOSS_T").param_value
     assert command(m, px4, 176, 1, 4, 3) == 0
     assert command(m, px4, 400, 1) == 0
     command(m, px4, 22, 0, 0, 0, math.nan, math.nan, math.nan, math.nan)
     wait(m, "LOCAL_POSITION_NED", lambda p: p.z < -1.5, timeout=30)
-    hover = 0.5
-    end = time.monotonic() + 1.5
-    while time.monotonic() < end:
-        m.mav.set_attitude_target_send(0, px4.sysid, 1, 3, [1.0, 0, 0, 0], 0, 0, 0, hover)
-        time.sleep(0.02)
-    assert command(m, px4, 176, 1, 6, 0) == 0
-    end = time.monotonic() + 1.0
-    while time.monotonic() < end:
-        m.mav.set_attitude_target_send(0, px4.sysid, 1, 3, [1.0, 0, 0, 0], 0, 0, 0, hover)
-        time.sleep(0.02)
-    last = wait(m, "ATTITUDE_QUATERNION").time_boot_ms * 1e-3  # the stream stops here
+    stream(m, px4.sysid, 1.5, (1.0, 0, 0, 0), hover)
+    m.mav.command_long_send(px4.sysid, 1, 176, 0, 1, 6, 0, 0, 0, 0, 0)
+    stream(m, px4.sysid, 0.5, (1.0, 0, 0, 0), hover)
+    assert latest(m, "HEARTBEAT").custom_mode == px4_custom_mode("OFFBOARD") or heartbeat(
+        m, lambda h: h.custom_mode == px4_custom_mode("OFFBOARD"))
+
+
+def test_px4_offboard_loss_leaves_offboard_and_descends_without_holding(px4):
+    """The stream stops in OFFBOARD: out of OFFBOARD within COM_OF_LOSS_T + 1.5 s of vehicle time (a
+    1 Hz heartbeat), then it descends at once (no 5 s hold: 0.5 m below within 3 s after leaving)
+    and disarms on the ground."""
+    m = px4.connect()
+    heartbeat(m)
+    m.mav.param_request_read_send(px4.sysid, 1, b"COM_OF_LOSS_T", -1)
+    loss_t = wait(m, "PARAM_VALUE", lambda p: p.param_id == "COM_OF_LOSS_T").param_value
+    _airborne_in_offboard(m, px4)
+    last = latest(m, "ATTITUDE_QUATERNION").time_boot_ms * 1e-3  # the stream stops here
     heartbeat(m, lambda h: h.custom_mode != px4_custom_mode("OFFBOARD"), timeout=20)
-    left = wait(m, "ATTITUDE_QUATERNION").time_boot_ms * 1e-3
-    assert left - last < loss_t + 1.0, (left - last, loss_t)
-    z_left = wait(m, "LOCAL_POSITION_NED").z
-    t_left = left
-    p = wait(m, "LOCAL_POSITION_NED", lambda p: p.time_boot_ms * 1e-3 > t_left + 2.5, timeout=20)
+    left = latest(m, "ATTITUDE_QUATERNION").time_boot_ms * 1e-3
+    assert left - last < loss_t + 1.5, (left - last, loss_t)
+    z_left = latest(m, "LOCAL_POSITION_NED").z
+    p = wait(m, "LOCAL_POSITION_NED", lambda p: p.time_boot_ms * 1e-3 > left + 3.0, timeout=20)
     assert p.z - z_left > 0.5, (z_left, p.z)  # descending, not holding
     heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=60)
 
 
 def test_px4_an_attitude_with_roll_and_pitch_rates_ignored_is_flown(px4):
-    """type_mask 3: the attitude (10 deg of roll) is flown; the vehicle reaches 10 +- 4 deg."""
+    """type_mask 3: the attitude (10 deg of roll) is flown; after 1 s of vehicle time the vehicle is at
+    10 +- 4 deg (PX4's attitude loop: ~0.2 s to settle)."""
     m = px4.connect()
-    heartbeat(m)
-    armable(m)
-    assert command(m, px4, 176, 1, 4, 3) == 0
-    assert command(m, px4, 400, 1) == 0
-    command(m, px4, 22, 0, 0, 0, math.nan, math.nan, math.nan, math.nan)
-    wait(m, "LOCAL_POSITION_NED", lambda p: p.z < -1.5, timeout=30)
-    level = [1.0, 0.0, 0.0, 0.0]
-    roll = [math.cos(math.radians(5)), math.sin(math.radians(5)), 0.0, 0.0]
-    end = time.monotonic() + 1.5
-    while time.monotonic() < end:
-        m.mav.set_attitude_target_send(0, px4.sysid, 1, 3, level, 0, 0, 0, 0.5)
-        time.sleep(0.02)
-    assert command(m, px4, 176, 1, 6, 0) == 0
-    end = time.monotonic() + 1.0 / px4.speed * 1.5
-    while time.monotonic() < end:
-        m.mav.set_attitude_target_send(0, px4.sysid, 1, 3, roll, 0, 0, 0, 0.52)
-        time.sleep(0.01)
-    att = wait(m, "ATTITUDE")
+    _airborne_in_offboard(m, px4)
+    roll = (math.cos(math.radians(5)), math.sin(math.radians(5)), 0.0, 0.0)
+    stream(m, px4.sysid, 1.0 / px4.speed, roll, 0.52)
+    m.mav.set_attitude_target_send(0, px4.sysid, 1, 3, list(roll), 0, 0, 0, 0.52)
+    att = latest(m, "ATTITUDE")
     assert abs(math.degrees(att.roll) - 10.0) < 4.0, math.degrees(att.roll)
 
 
@@ -149,3 +136,52 @@ def test_arducopter_has_a_position_only_once_its_ekf_has_an_origin(copter):
     first_att = wait(m, "ATTITUDE", timeout=20).time_boot_ms * 1e-3
     pos = wait(m, "LOCAL_POSITION_NED", timeout=120)
     assert pos.time_boot_ms * 1e-3 > 20.0 and pos.time_boot_ms * 1e-3 > first_att, (first_att, pos.time_boot_ms)
+
+
+def _guided_airborne(m, copter) -> None:
+    """GUIDED, armed, 2 m up, thrust as throttle (GUID_OPTIONS bit 3), streams on."""
+    heartbeat(m, timeout=20)
+    m.mav.request_data_stream_send(copter.sysid, 1, 0, 20, 1)
+    wait(m, "LOCAL_POSITION_NED", timeout=120)
+    armable(m, timeout=60)
+    m.mav.param_set_send(copter.sysid, 1, b"GUID_OPTIONS", 8, mavutil.mavlink.MAV_PARAM_TYPE_REAL32)
+    wait(m, "PARAM_VALUE", lambda p: p.param_id == "GUID_OPTIONS")
+    assert command(m, copter, 176, 1, COPTER_MODES["GUIDED"]) == 0
+    end = time.monotonic() + 20
+    while command(m, copter, 400, 1) != 0:  # its pre-arm checks may settle a little later
+        assert time.monotonic() < end, "never armed"
+        time.sleep(0.5)
+    assert command(m, copter, 22, 0, 0, 0, 0, 0, 0, 2.0) == 0
+    wait(m, "LOCAL_POSITION_NED", lambda p: p.z < -1.8, timeout=60)
+
+
+def _hover_throttle(m, copter) -> float:
+    m.mav.param_request_read_send(copter.sysid, 1, b"MOT_THST_HOVER", -1)
+    return wait(m, "PARAM_VALUE", lambda p: p.param_id == "MOT_THST_HOVER").param_value
+
+
+def test_arducopter_guided_flies_an_attitude_target_beyond_its_angle_limit(copter):
+    """A 40 deg roll target in GUIDED (the angle limit is 30 deg): flown past 35 deg, not clipped."""
+    m = copter.connect()
+    _guided_airborne(m, copter)
+    hover = _hover_throttle(m, copter)
+    q = (math.cos(math.radians(20)), math.sin(math.radians(20)), 0.0, 0.0)
+    stream(m, copter.sysid, 1.5 / copter.speed, q, min(hover / math.cos(math.radians(40)), 0.9), type_mask=7)
+    m.mav.set_attitude_target_send(0, copter.sysid, 1, 7, list(q), 0, 0, 0, hover)
+    att = latest(m, "ATTITUDE")
+    assert math.degrees(att.roll) > 35.0, math.degrees(att.roll)
+
+
+def test_arducopter_levels_after_guid_timeout_and_stays_in_guided(copter):
+    """The targets (15 deg of roll) stop: after GUID_TIMEOUT (3 s) and 1 s more of vehicle time it is
+    level (< 3 deg), armed, in GUIDED."""
+    m = copter.connect()
+    _guided_airborne(m, copter)
+    hover = _hover_throttle(m, copter)
+    q = (math.cos(math.radians(7.5)), math.sin(math.radians(7.5)), 0.0, 0.0)
+    stream(m, copter.sysid, 1.0 / copter.speed, q, hover, type_mask=7)
+    t0 = latest(m, "ATTITUDE").time_boot_ms * 1e-3
+    att = wait(m, "ATTITUDE", lambda a: a.time_boot_ms * 1e-3 > t0 + 4.0, timeout=30)
+    assert abs(math.degrees(att.roll)) < 3.0, math.degrees(att.roll)
+    h = latest(m, "HEARTBEAT")
+    assert h.custom_mode == COPTER_MODES["GUIDED"] and h.base_mode & ARMED
