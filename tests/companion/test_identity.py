@@ -1,0 +1,82 @@
+"""Identity: telemetry counts only from the autopilot's own component, a COMMAND_ACK only when it is
+addressed to us and answers a command we sent, and a heartbeat of another kind from the autopilot's
+component does not end a flight. Fed to the real link's receive path (as the socket would)."""
+
+import asyncio
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from companion.link.pymavlink_link import PymavlinkLink
+
+PEER = ("127.0.0.1", 14580)
+
+
+def link_with(frames) -> PymavlinkLink:
+    async def main() -> PymavlinkLink:
+        link = PymavlinkLink("udpin://127.0.0.1:0")
+        for f in frames:
+            link._received(f, PEER)
+        stop = asyncio.Event()
+        reader = asyncio.create_task(link.run(stop))
+        for _ in range(5):
+            await asyncio.sleep(0)
+        stop.set()
+        await reader
+        return link
+
+    return asyncio.run(main())
+
+
+def mav(sysid=1, compid=1) -> mavlink.MAVLink:
+    return mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+
+
+def heartbeat(m, autopilot=mavlink.MAV_AUTOPILOT_PX4, kind=mavlink.MAV_TYPE_QUADROTOR, custom_mode=6 << 16):
+    return m.heartbeat_encode(kind, autopilot, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | 128, custom_mode,
+                              4).pack(m)
+
+
+def test_telemetry_from_another_component_of_the_same_system_is_ignored():
+    ap, camera = mav(1, 1), mav(1, 100)
+    link = link_with([
+        heartbeat(ap),
+        ap.local_position_ned_encode(1000, 1.0, 2.0, -3.0, 0, 0, 0).pack(ap),
+        camera.local_position_ned_encode(1010, 50.0, 50.0, -50.0, 0, 0, 0).pack(camera),
+        camera.attitude_quaternion_encode(1010, 0.7071, 0.7071, 0, 0, 0, 0, 0).pack(camera),
+    ])
+    assert link.state.pos_ned_m == (1.0, 2.0, -3.0) and link.state.q == (1.0, 0.0, 0.0, 0.0)
+    assert link.stats["foreign_messages"] == 2
+
+
+def test_a_heartbeat_of_another_kind_from_the_autopilots_component_does_not_change_the_mode():
+    ap = mav(1, 1)
+    link = link_with([heartbeat(ap), heartbeat(ap, autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, custom_mode=9),
+                      heartbeat(ap, kind=mavlink.MAV_TYPE_GCS, custom_mode=0)])
+    assert link.state.mode == "OFFBOARD" and link.state.offboard and link.state.armed
+    assert link.stats["heartbeats_of_another_kind"] == 2
+
+
+def test_a_command_ack_counts_only_when_addressed_to_us_and_answering_a_command_in_flight():
+    async def main() -> tuple[int, int, int]:
+        link = PymavlinkLink("udpin://127.0.0.1:0", command_timeout_s=0.2, command_retries=2)
+        ap = mav(1, 1)
+        link._received(heartbeat(ap), PEER)
+        stop = asyncio.Event()
+        reader = asyncio.create_task(link.run(stop))
+        await asyncio.sleep(0.05)
+        link._peer = None  # sending goes nowhere: only the forged answers below arrive
+        pending = asyncio.create_task(link.command_long(400, 1))
+        await asyncio.sleep(0.01)
+        # answers to someone else, and an answer to a command we never sent
+        link._received(ap.command_ack_encode(400, 0, 0, 0, 42, 1).pack(ap), PEER)
+        link._received(ap.command_ack_encode(176, 0, 0, 0, 255, 191).pack(ap), PEER)
+        await asyncio.sleep(0.05)
+        assert not pending.done()
+        link._received(ap.command_ack_encode(400, 4, 0, 0, 255, 191).pack(ap), PEER)  # ours: FAILED
+        result = await pending
+        stop.set()
+        await reader
+        return result, link.stats["acks_not_for_us"], link.stats["acks_unasked"]
+
+    result, not_ours, unasked = asyncio.run(main())
+    assert result == 4 and not_ours == 1 and unasked == 1
