@@ -3,6 +3,7 @@
     sitl-experiments all --out results          # E1-E5
     sitl-experiments E1_step_force E5_suspended_weight --jobs 2
     sitl-experiments sitl/scenarios/E3_wind.toml --seeds 100
+    sitl-experiments E3_calm --set position.force_source=measured --out results/measured
 
 Per scenario, in ``OUT/<name>/``: one gzipped CSV time series per run (``runs/``), a metrics
 table (``metrics.csv``: one row per controller combination, seed and segment) and a PNG figure.
@@ -26,7 +27,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from .metrics import SegmentMetrics, flight_metrics
-from .scenario import SCENARIO_DIR, Scenario, load_scenario
+from .scenario import SCENARIO_DIR, Scenario, apply_settings, load_scenario, parse_setting
 from .simulation import FlightLog, simulate
 
 __all__ = ["Case", "ExperimentResult", "run_experiment", "main", "PAPER_EXPERIMENTS"]
@@ -218,6 +219,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, help="run seeds 1..N instead of the scenario's own list")
     ap.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
     ap.add_argument("--list", action="store_true", help="list the bundled scenarios and exit")
+    ap.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
+                    help="change a scenario parameter for every scenario run, e.g. position.force_source=measured "
+                         "or position.observer_uses_imu=true (repeatable)")
     args = ap.parse_args(argv)
     if args.list:
         for p in sorted(SCENARIO_DIR.glob("*.toml")):
@@ -227,7 +231,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     try:
         scenarios = resolve(args.scenarios)
-    except ConfigError as exc:
+        settings = dict(parse_setting(s) for s in args.set)
+        scenarios = [apply_settings(sc, settings) for sc in scenarios]
+    except (ConfigError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     seeds = list(range(1, args.seeds + 1)) if args.seeds else None

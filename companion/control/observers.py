@@ -102,9 +102,10 @@ class TorqueObserver:
 class ForceObserver:
     """Force disturbance estimate ``h_f_hat`` [N] in NED (30).
 
-    ``h_meas = m0 (r_ddot - g e3) - f_applied``, where ``r_ddot - g e3`` is the accelerometer's
-    specific force rotated into NED (or differentiated position minus gravity) and
-    ``f_applied = -T R(q) e3`` uses the measured attitude and the thrust actually commanded.
+    ``h_meas = m0 (r_ddot - g e3) - f``, where ``r_ddot - g e3`` is the accelerometer's
+    specific force rotated into NED (or differentiated position minus gravity) and ``f`` is the
+    force the vehicle was asked for: the paper's commanded ``-T R(q_d) e3``, or ``-T R(q) e3``
+    along the measured attitude (``PositionGains.force_source``).
     """
 
     mass_kg: float | Real

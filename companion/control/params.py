@@ -31,7 +31,11 @@ __all__ = [
     "from_mapping",
     "to_mapping",
     "attitude_stability_margin",
+    "FORCE_SOURCES",
 ]
+
+FORCE_SOURCES = ("commanded", "measured")
+"""The force observer's force input (30): see :attr:`PositionGains.force_source`."""
 
 
 class ParamError(ValueError):
@@ -130,7 +134,24 @@ class PositionGains:
     disturbance the vehicle could actually hold against."""
     anti_windup: bool = True
     observer_uses_imu: bool = True
-    """Force DO from the accelerometer's specific force (else from differentiated position)."""
+    """Acceleration source of the force DO: the accelerometer's specific force rotated to NED
+    (true), or differentiated, filtered tracking positions (false: the paper's experiments, and
+    the E1-E5 scenario files). A companion flying a real autopilot has the accelerometer."""
+    force_source: str = "commanded"
+    """What the force DO (30) subtracts from ``m0 (r_dd - g e3)``:
+
+    - ``"commanded"`` (the paper's): the virtual force ``f = -T R(q_d) e3`` the position loop
+      sent (after the tilt and thrust limits). The estimate then also holds whatever the inner
+      attitude loop fails to deliver, and the position loop compensates it: right for a
+      sluggish or biased inner loop.
+    - ``"measured"``: ``-T R(q) e3`` with the measured attitude. The estimate is the true
+      external force (plus thrust-model error), and inner-loop error is left uncompensated:
+      right when the force itself is wanted (interaction, logging, ``companion estimate``).
+    """
+
+    def __post_init__(self) -> None:
+        if self.force_source not in FORCE_SOURCES:
+            raise ValueError(f"force_source: expected one of {', '.join(FORCE_SOURCES)}, got {self.force_source!r}")
 
     def k_v(self) -> Vec3:
         w = self.omega_c_rad_s

@@ -101,8 +101,9 @@ class PositionController:
     """One of POSITION_CONTROLLERS; :meth:`update` returns the force f [N, NED].
 
     ``specific_force_ned`` is ``r_dd - g e3`` (accelerometer rotated to NED, or differentiated
-    position minus gravity), ``force_applied_prev_n`` is ``-T R(q) e3`` of the thrust commanded in
-    the previous step and the measured attitude: the force observer's inputs (30).
+    position minus gravity), ``force_applied_prev_n`` the previous step's force as the gains'
+    ``force_source`` asks (:func:`~companion.control.outer_loop.observer_force`): the force
+    observer's inputs (30).
     """
 
     kind: str
