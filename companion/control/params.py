@@ -149,6 +149,15 @@ class PositionGains:
       right when the force itself is wanted (interaction, logging, ``companion estimate``).
     """
 
+    observer_match_delay_s: float = 0.0
+    observer_match_cutoff_hz: float = 0.0
+    """The force input of (30) is delayed by ``observer_match_delay_s`` and low-passed by
+    ``observer_match_order`` first-order filters at ``observer_match_cutoff_hz`` (0: not
+    filtered), to match how the acceleration was obtained: for differentiated tracking data
+    (``observer_uses_imu = false``) its delay and filters, so that the difference in (30) sees
+    the disturbance and not the force's change over that delay (:class:`MatchingFilter`)."""
+    observer_match_order: int = 2
+
     def __post_init__(self) -> None:
         if self.force_source not in FORCE_SOURCES:
             raise ValueError(f"force_source: expected one of {', '.join(FORCE_SOURCES)}, got {self.force_source!r}")

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .attitude import _integrate_with_reset
-from .observers import ForceObserver
+from .observers import ForceObserver, MatchingFilter
 from .params import PositionGains
 from .vector import (
     ZERO3,
@@ -125,7 +125,8 @@ class PositionController:
             raise ValueError(f"unknown position controller {self.kind!r}; expected one of {POSITION_CONTROLLERS}")
         g = self.gains
         self._k_v, self._k_p, self._k_i = g.k_v(), g.k_p(), g.k_i()
-        self.observer = ForceObserver(self.mass_kg, g.observer_gain_rad_s)
+        matching = MatchingFilter(g.observer_match_delay_s, g.observer_match_cutoff_hz, g.observer_match_order)
+        self.observer = ForceObserver(self.mass_kg, g.observer_gain_rad_s, matching=matching)
         if self.kind == "aibc":
             coeffs = [aibc_coefficients_per_vehicle(w) for w in g.omega_c_rad_s]
             c1 = tuple(c[0] for c in coeffs)
