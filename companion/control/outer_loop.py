@@ -38,11 +38,14 @@ def observer_force(force_source: str, thrust_n: Real, q_measured: Quat, q_comman
 
 
 class AttitudeSetpoint(NamedTuple):
-    """What SET_ATTITUDE_TARGET carries: attitude, body-rate feed-forward (in D) and thrust."""
+    """What SET_ATTITUDE_TARGET carries: attitude, body-rate feed-forward (in D) and thrust, and,
+    where the position loop runs next to the attitude loop, the rate's derivative for (13)."""
 
     q_d: Quat
     omega_d_rad_s: Vec3
     thrust_n: Real
+    omega_d_dot_rad_s2: Vec3 = ZERO3
+    """(not on the wire: a vehicle flown over MAVLink gets zero)"""
 
 
 class PositionMeasurement(NamedTuple):
@@ -106,4 +109,4 @@ class PositionLoop:
         self.force_n = f
         self.thrust_n = thrust
         self.q_d = q_d
-        return AttitudeSetpoint(q_d, omega_d, thrust)
+        return AttitudeSetpoint(q_d, omega_d, thrust, self.rate_reference.omega_d_dot)

@@ -74,14 +74,19 @@ class RateReference:
 
     ``omega_d,k = log(q_d,k-1^* ⊗ q_d,k) / t_s`` (expressed in D), low-pass filtered with
     ``rate_filter_time_constant_s`` and then limited to ``rate_limit_rad_s`` in norm.
+    ``omega_d_dot`` is its change over the step, ``(omega_d,k - omega_d,k-1) / t_s``: the
+    feed-forward ``R~^T omega_d'`` of (13), which integrates over the next step to exactly the
+    change, so the attitude loop's sliding variable does not collect the commanded rate changes.
     """
 
     params: ReferenceParams = field(default_factory=ReferenceParams)
     omega_d: Vec3 = ZERO3
+    omega_d_dot: Vec3 = ZERO3
     _q_prev: Quat | None = field(default=None, repr=False)
 
     def reset(self) -> None:
         self.omega_d = ZERO3
+        self.omega_d_dot = ZERO3
         self._q_prev = None
 
     def update(self, q_d: Quat, dt_s: float) -> Vec3:
@@ -96,6 +101,8 @@ class RateReference:
             a = lowpass_alpha(1.0 / tc, dt_s)
             o = self.omega_d
             raw = (o[0] + a * (raw[0] - o[0]), o[1] + a * (raw[1] - o[1]), o[2] + a * (raw[2] - o[2]))
-        self.omega_d = clip_norm(raw, self.params.rate_limit_rad_s)
-        return self.omega_d
+        o, new = self.omega_d, clip_norm(raw, self.params.rate_limit_rad_s)
+        self.omega_d_dot = ((new[0] - o[0]) / dt_s, (new[1] - o[1]) / dt_s, (new[2] - o[2]) / dt_s)
+        self.omega_d = new
+        return new
 

@@ -92,3 +92,13 @@ def test_reference_filter_respects_speed_and_acceleration_limits():
     assert max(accels) <= 8.0 + 1e-9
     np.testing.assert_allclose(r.pos_ned_m, (10.0, 5.0, -3.0), atol=1e-3)
     assert math.isclose(r.yaw_rad, math.radians(90), abs_tol=1e-6)
+
+
+def test_rate_reference_gives_the_angular_acceleration_of_a_speeding_rotation():
+    """A reference about a fixed axis with angle 1/2 alpha t^2: omega_d' = alpha (unfiltered it is
+    exact up to the one-step backward difference of (34), so within 1e-6 after the first steps)."""
+    rr = RateReference(ReferenceParams(rate_filter_time_constant_s=0.0))
+    alpha, dt, axis = 3.0, 0.01, (0.6, 0.0, 0.8)
+    for k in range(50):
+        rr.update(quat.from_axis_angle(axis, 0.5 * alpha * (k * dt) ** 2), dt)
+    np.testing.assert_allclose(rr.omega_d_dot, vec.scale(alpha, axis), atol=1e-6)
