@@ -106,6 +106,7 @@ class PositionLoop:
         q_d, thrust = attitude_from_force(f, ref.yaw_rad)
         thrust = clip(thrust, 0.0, self.vehicle.thrust_max_n)
         omega_d = self.rate_reference.update(q_d, dt_s)
+        q_d = self.rate_reference.q_ref or q_d
         self.force_n = f
         self.thrust_n = thrust
         self.q_d = q_d
