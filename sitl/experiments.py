@@ -197,7 +197,23 @@ def summary_table(result: ExperimentResult) -> str:
             lines.append("| " + " | ".join(cells) + " |")
     n_seeds = len(next(iter(combos.values())))
     lines += ["", f"(median over {n_seeds} seed{'s' if n_seeds > 1 else ''})", ""]
+    lines += claims_table(result)
     return "\n".join(lines)
+
+
+def claims_table(result: ExperimentResult) -> list[str]:
+    """The paper's claims about this scenario (sitl/claims.py), judged on this result."""
+    from .claims import claims_for, judge
+
+    out = []
+    for c in claims_for(result.scenario.name):
+        try:
+            v = judge(c, result)
+        except KeyError as exc:  # a controller the claim needs was not flown
+            out.append(f"- {c.name}: not judged ({exc})")
+            continue
+        out.append(f"- {c.name}: **{'holds' if v.holds else 'FAILS'}**" + ("" if v.holds else f" ({v.detail})"))
+    return (["Claims (every seed; E3: medians):", "", *out, ""]) if out else []
 
 
 def resolve(names: Sequence[str]) -> list[Scenario]:
