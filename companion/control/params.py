@@ -186,9 +186,13 @@ class ReferenceParams:
     rate_limit_rad_s: float = math.radians(250.0)
     """|omega_d| limit: the paper's gyro-safe 250 deg/s."""
     rate_filter_time_constant_s: float = 0.05
-    """Low-pass on the attitude reference that (34) differentiates (a reference that jumps with
-    every new position sample): attitude and rate command come from one filtered motion
-    (:class:`~companion.control.reference.RateReference`)."""
+    """Low-pass on omega_d of (34), which differentiates a reference that jumps with every new
+    position sample (or on the attitude reference, with ``filter_attitude``); 0.05 s keeps the
+    hover rate command near 4 deg/s RMS (docs/architecture.md)."""
+    filter_attitude: bool = False
+    """Filter and rate-limit the attitude reference itself so that omega_d is its exact motion
+    (bounds the body rate by the limit; adds the filter's lag to the position loop), instead of
+    the rate command alone: :class:`~companion.control.reference.RateReference`."""
 
 
 @dataclass(frozen=True)

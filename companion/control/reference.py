@@ -4,8 +4,8 @@
 ``f / |f|`` is ``q_f ∝ [|f| - e3^T f, (-e3) x f]``. It is singular only for a force pointing
 straight down, which :func:`limit_force` rules out by keeping a minimum upward component.
 (34) differentiates the *desired* rotation of consecutive position steps; because that
-amplifies sensor noise, the attitude it is computed from is low-pass filtered along the
-shortest arc and its steps limited in norm (:class:`RateReference`).
+amplifies sensor noise, the rate (or, optionally, the attitude it is computed from) is low-pass
+filtered and limited in norm (:class:`RateReference`).
 """
 
 from __future__ import annotations
@@ -71,18 +71,22 @@ def attitude_from_force(force_ned_n: Vec3, yaw_rad: Real) -> tuple[Quat, Real]:
 
 @dataclass
 class RateReference:
-    """Attitude reference and angular-velocity command of (34), consistent with each other.
+    """Angular-velocity command of (34) and the attitude reference sent with it.
 
     (34) differentiates consecutive desired attitudes, ``omega_d,k = log(q_d,k-1^* ⊗ q_d,k) / t_s``
     (expressed in D), which amplifies sensor noise (SPEC section 3: filter what it is computed
-    from). So the attitude sent, :attr:`q_ref`, follows the position loop's ``q_d`` through a
-    first-order filter along the shortest arc (``rate_filter_time_constant_s``) whose step is
-    also limited to ``rate_limit_rad_s``; ``omega_d`` is exactly that step over ``t_s``.
+    from, or omega_d itself). Two forms, chosen by ``ReferenceParams.filter_attitude``:
 
-    Filtering the rate alone (the earlier form) let the attitude reference run ahead of the
-    rate command, and the attitude loop then turned the body at whatever rate closed the gap:
-    in E4 357 deg/s of body rate behind a 250 deg/s command. With attitude and rate from one
-    filtered motion, the rate limit bounds the motion itself, which is what protects the gyros.
+    - ``False`` (the paper's structure, the default): the attitude sent is (33)'s ``q_d``; the
+      rate is low-pass filtered (``rate_filter_time_constant_s``) and limited in norm
+      (``rate_limit_rad_s``).
+    - ``True``: the attitude sent, :attr:`q_ref`, follows ``q_d`` through that first-order filter
+      along the shortest arc with its step limited to ``rate_limit_rad_s``, and ``omega_d`` is
+      exactly that step over ``t_s``: attitude and rate are one motion, so the limit bounds the
+      body rate too. In the default form the filtered rate lags the attitude it belongs to, the
+      attitude loop closes the gap at whatever rate it takes, and in E4 the body turns at up to
+      360 deg/s behind a command limited to 250 deg/s; the filtered attitude keeps it within
+      270 deg/s but puts the filter's lag into the position loop (E1 peaks 15-20 % higher).
 
     ``omega_d_dot = (omega_d,k - omega_d,k-1) / t_s`` is the feed-forward ``R~^T omega_d'`` of
     (13); over the next step it integrates to exactly the change, so the attitude loop's sliding
@@ -93,7 +97,7 @@ class RateReference:
     omega_d: Vec3 = ZERO3
     omega_d_dot: Vec3 = ZERO3
     q_ref: Quat | None = None
-    """the attitude to command: q_d filtered and rate limited (None before the first update)"""
+    """the attitude to send (None before the first update)"""
 
     def reset(self) -> None:
         self.omega_d = ZERO3
@@ -101,7 +105,7 @@ class RateReference:
         self.q_ref = None
 
     def update(self, q_d: Quat, dt_s: float) -> Vec3:
-        """Move :attr:`q_ref` towards ``q_d`` by one step; returns ``omega_d`` (in D)."""
+        """One position step: sets :attr:`q_ref` and returns ``omega_d`` (in D)."""
         prev = self.q_ref
         if prev is None:
             self.q_ref = q_d
@@ -109,9 +113,16 @@ class RateReference:
         delta = quat.log(quat.relative(prev, q_d))
         tc = self.params.rate_filter_time_constant_s
         a = lowpass_alpha(1.0 / tc, dt_s) if tc > 0.0 else 1.0
-        step = clip_norm((a * delta[0], a * delta[1], a * delta[2]), self.params.rate_limit_rad_s * dt_s)
-        self.q_ref = quat.mul(prev, quat.exp(step))
-        o, new = self.omega_d, (step[0] / dt_s, step[1] / dt_s, step[2] / dt_s)
+        o, limit = self.omega_d, self.params.rate_limit_rad_s
+        if self.params.filter_attitude:
+            step = clip_norm((a * delta[0], a * delta[1], a * delta[2]), limit * dt_s)
+            self.q_ref = quat.mul(prev, quat.exp(step))
+            new = (step[0] / dt_s, step[1] / dt_s, step[2] / dt_s)
+        else:
+            raw = (delta[0] / dt_s, delta[1] / dt_s, delta[2] / dt_s)
+            new = clip_norm((o[0] + a * (raw[0] - o[0]), o[1] + a * (raw[1] - o[1]), o[2] + a * (raw[2] - o[2])),
+                            limit)
+            self.q_ref = q_d
         self.omega_d_dot = ((new[0] - o[0]) / dt_s, (new[1] - o[1]) / dt_s, (new[2] - o[2]) / dt_s)
         self.omega_d = new
         return new

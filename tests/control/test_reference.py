@@ -107,8 +107,8 @@ def test_rate_reference_gives_the_angular_acceleration_of_a_speeding_rotation():
 def test_attitude_reference_and_rate_command_are_one_motion_within_the_limit():
     """A 120 deg jump of q_d: the attitude sent moves towards it no faster than the limit, and
     omega_d is exactly its motion (q_ref,k = q_ref,k-1 exp(omega_d t_s)), so an attitude loop
-    that tracks both is never asked to turn faster than the limit."""
-    rr = RateReference(ReferenceParams())
+    that tracks both is never asked to turn faster than the limit (``filter_attitude``)."""
+    rr = RateReference(ReferenceParams(filter_attitude=True))
     dt, limit = 0.01, math.radians(250)
     rr.update(quat.IDENTITY, dt)
     target = quat.from_axis_angle((0.0, 0.6, 0.8), math.radians(120))

@@ -185,12 +185,14 @@ def test_e3_attitude_do_lowers_every_position_error(e3):
 
 
 def test_e4_large_tilts_within_the_gyro_rating(e4):
-    holds("E4 large tilts within the gyro rating", e4)
-    # a reference aggressive enough that the command hits its 250 deg/s limit: the body, behind
-    # the rotors' 20 ms lag, overshoots the command past the gyro's rating
-    aggressive = fly("E4_waypoints", [1], {"trajectory.max_accel_m_s2": 9.0, "trajectory.max_jerk_m_s3": 40.0},
-                     ("ism_do",))
-    fails("E4 large tilts within the gyro rating", aggressive)
+    """Not reproduced on the paper's configuration, and the test says so: the command is limited
+    to 250 deg/s, but the filtered rate lags the attitude reference it belongs to, the attitude
+    loop closes the gap at whatever rate it takes, and the body turns at 280-360 deg/s, past the
+    gyro's 300. With the attitude reference itself filtered and rate-limited (omega_d its exact
+    motion: reference.filter_attitude) the same check holds over five seeds."""
+    fails("E4 large tilts within the gyro rating", e4)
+    consistent = fly("E4_waypoints", settings={"reference.filter_attitude": True}, position=("pd_do", "ism_do"))
+    holds("E4 large tilts within the gyro rating", consistent)
 
 
 def test_e4_position_speed_and_yaw_tracked(e4):
