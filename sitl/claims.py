@@ -135,14 +135,16 @@ def e2_roll_held_at_sixty_degrees(r: ExperimentResult) -> list[str]:
 
 def e2_estimate_follows_the_slow_component(r: ExperimentResult) -> list[str]:
     """The torque observer is a first-order low-pass (Gamma_a) of the measured disturbance: its
-    estimate equals the true torque through that low-pass, up to the differentiated gyro's
-    noise (~3e-3 N m): RMS difference < 5e-3 N m during the chirp, whose 0.02-0.04 N m is ten
-    times that (the fast part is left to the sliding term)."""
+    estimate equals the true torque through that low-pass, up to noise: the differentiated
+    gyro (0.005 rad/s per 1 kHz sample: J0 * 0.007 / 1 ms = 0.025 N m, low-passed at 8 rad/s
+    to ~1.6e-3 N m) and the 8-bit rotor commands' torque steps (~3.5e-3 N m) give ~2.5e-3 N m
+    per axis, ~4.3e-3 N m over three: RMS difference < 6e-3 N m during the chirp, whose
+    0.02-0.04 N m is 3-7 times that (the fast part is left to the sliding term)."""
     j = _Judge()
     gamma = r.scenario.attitude.observer_gain_rad_s
     j.require(all(abs(float(g) - 8.0) < 1e-9 for g in gamma), f"Gamma_a = {gamma} (the paper: 8)")
     for v in _per_seed(r, "rms_torque_lowpass_error_nm", "chirp", "ism_do"):
-        j.require(v < 5e-3, f"RMS(h_hat - LP h) {v * 1e3:.2f} mN m")
+        j.require(v < 6e-3, f"RMS(h_hat - LP h) {v * 1e3:.2f} mN m")
     return j.failures
 
 
@@ -290,6 +292,23 @@ def e5_release_pushes_back_without_swinging_past(r: ExperimentResult) -> list[st
     return j.failures
 
 
+def e5_aibc_estimate_stalls_and_its_error_persists(r: ExperimentResult) -> list[str]:
+    """The paper: AIBC's velocity-based estimate converges to a constant well short of the 6 N
+    (here: below 1.5 N, and settled: it moves less than 0.3 N between the last two fifths of the
+    attached phase), so only the slow integral is left and 10-20 s after the onset the error is
+    still above 0.3 m RMS. Against a broken baseline: the AIBC must be working, its integral
+    visibly removing the error (RMS over the last 10 s attached below 0.75 of the peak)."""
+    j = _Judge()
+    est = _per_seed(r, "steady_force_estimate_n", "attached", "aibc")
+    drift = _per_seed(r, "force_estimate_drift_n", "attached", "aibc")
+    late = _per_seed(r, "rms_error_m", "attached, late", "aibc")
+    peak = _per_seed(r, "peak_error_m", "attached", "aibc")
+    for a, b, c, d in zip(est, drift, late, peak):
+        j.require(a < 1.5 and b < 0.3 and c > 0.3 and c < 0.75 * d,
+                  f"AIBC estimate {a:.2f} N (moving {b:.2f} N), late RMS {c:.2f} m, peak {d:.2f} m")
+    return j.failures
+
+
 CLAIMS: tuple[Claim, ...] = (
     Claim("E1 PD+DO settles faster than PID", "E1_step_force",
           "The PD+DO approach shows faster convergence than the PID controller.", e1_pd_do_settles_faster_than_pid),
@@ -327,6 +346,10 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("E5 release without swinging past", "E5_suspended_weight",
           "Importantly, releasing the weight does not cause an overshoot.",
           e5_release_pushes_back_without_swinging_past),
+    Claim("E5 AIBC estimate stalls and its error persists", "E5_suspended_weight",
+          "The velocity-based disturbance observation of the AIBC does not correctly identify this disturbance ... "
+          "the disturbance estimate converges to a constant value. The integral term is too slow to drive the "
+          "error to zero.", e5_aibc_estimate_stalls_and_its_error_persists),
 )
 
 

@@ -30,7 +30,7 @@ from .vector import (
     sub,
 )
 
-__all__ = ["TorqueObserver", "ForceObserver", "MatchingFilter", "lowpass_step"]
+__all__ = ["TorqueObserver", "ForceObserver", "MomentumObserver", "MatchingFilter", "lowpass_step"]
 
 
 def lowpass_step(estimate: Vec3, measurement: Vec3, alpha: Vec3) -> Vec3:
@@ -194,4 +194,47 @@ class ForceObserver:
         if model_force_n is not ZERO3:
             h_meas = sub(h_meas, model_force_n)
         self.estimate_n = lowpass_step(self.estimate_n, h_meas, self._alpha(dt_s))
+        return self.estimate_n
+
+
+@dataclass
+class MomentumObserver:
+    """Force disturbance estimate [N] from a velocity, without differentiating it.
+
+    ``h_hat = Gamma (m0 v - p_hat)``, ``p_hat' = f + m0 a_known + h_hat``, so that
+    ``h_hat' = Gamma (m0 v' - f - m0 a_known - h_hat)``: exactly (30) with ``r_dd = v'``, but the
+    velocity is used as it is (the generalised-momentum observer). ``a_known`` is whatever
+    acceleration the model knows besides ``f / m0`` (gravity ``g e3``; minus the reference's
+    acceleration when ``v`` is a velocity error). The force passes through ``matching``, the
+    velocity's own delay and filter (see the module docstring).
+    """
+
+    mass_kg: float | Real
+    bandwidth_rad_s: Vec3
+    estimate_n: Vec3 = ZERO3
+    matching: MatchingFilter = field(default_factory=MatchingFilter)
+    _p_hat: Vec3 | None = field(default=None, repr=False)
+
+    def reset(self) -> None:
+        self.estimate_n = ZERO3
+        self._p_hat = None
+        self.matching.reset()
+
+    def update(self, vel_m_s: Vec3, force_n: Vec3, known_accel_m_s2: Vec3, dt_s: float) -> Vec3:
+        """Advance over the step that just ended: ``vel_m_s`` now, ``force_n`` and
+        ``known_accel_m_s2`` as they acted during that step. Returns the estimate [N]."""
+        m, g = self.mass_kg, self.bandwidth_rad_s
+        momentum = scale(m, vel_m_s)
+        if self.matching.active:
+            force_n = self.matching.update(force_n, dt_s)
+        p = self._p_hat
+        if p is None:  # no step behind us yet: the model starts where the vehicle is
+            self._p_hat = momentum
+            return self.estimate_n
+        a, h = known_accel_m_s2, self.estimate_n
+        p = (p[0] + dt_s * (force_n[0] + m * a[0] + h[0]),
+             p[1] + dt_s * (force_n[1] + m * a[1] + h[1]),
+             p[2] + dt_s * (force_n[2] + m * a[2] + h[2]))
+        self._p_hat = p
+        self.estimate_n = (g[0] * (momentum[0] - p[0]), g[1] * (momentum[1] - p[1]), g[2] * (momentum[2] - p[2]))
         return self.estimate_n

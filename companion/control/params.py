@@ -127,7 +127,11 @@ class PositionGains:
     """K_f / (m0 epsilon_p): the paper's K_sf = 1.5 m0 with epsilon = 1."""
     boundary_layer_m_s: Vec3 = (1.0, 1.0, 1.0)
     aibc_gamma_per_s: Vec3 = (4.0, 4.0, 2.0)
-    """AIBC's velocity-based estimate h = gamma * velocity error."""
+    """AIBC's velocity-based estimate: the bandwidth of its observer (``aibc_estimate``)."""
+    aibc_estimate: str = "observer"
+    """``"observer"``: a velocity-error observer, zero in nominal flight, so the AIBC keeps the
+    PID's local gains (section V); ``"velocity_feedback"``: the literal ``h = gamma v~``, which
+    adds gamma to the velocity gain (:mod:`~companion.control.position`)."""
     integral_limit_m_s2: float = 20.0
     """Bound on the PID/AIBC integral term K_i xi [m/s^2] (anti-windup). About 2 g: above the
     9.5 m/s^2 that the 45 degree hover of E5 needs, so it stops wind-up without capping a
@@ -159,6 +163,8 @@ class PositionGains:
     observer_match_order: int = 2
 
     def __post_init__(self) -> None:
+        if self.aibc_estimate not in ("observer", "velocity_feedback"):
+            raise ValueError(f"aibc_estimate: expected observer or velocity_feedback, got {self.aibc_estimate!r}")
         if self.force_source not in FORCE_SOURCES:
             raise ValueError(f"force_source: expected one of {', '.join(FORCE_SOURCES)}, got {self.force_source!r}")
 

@@ -221,3 +221,18 @@ def test_e5_release_without_swinging_past(e5):
                              runs=dataclasses.replace(sc.runs, position=("ism_do",)))
         twin = run_experiment(sc, seeds=[1], jobs=1)
         fails("E5 release without swinging past", merged(e5, twin))
+
+
+def test_e5_aibc_estimate_stalls_and_its_error_persists():
+    """Not reproduced by the gain-matched AIBC (its observer finds the 6 N, as any observer of a
+    constant does); reproduced over five seeds by the literal h = gamma v~, which is not
+    gain-matched (velocity gain 3 + 8). A broken AIBC (integral off) fails the check too."""
+    attached = ("attached", "attached, late")
+    matched = fly("E5_suspended_weight", [1], position=("aibc",), duration_s=22.0, segments=attached)
+    fails("E5 AIBC estimate stalls and its error persists", matched)
+    literal = {"position.aibc_estimate": "velocity_feedback"}
+    holds("E5 AIBC estimate stalls and its error persists",
+          fly("E5_suspended_weight", SEEDS, literal, ("aibc",), duration_s=22.0, segments=attached))
+    broken = fly("E5_suspended_weight", [1], {**literal, "position.integral_limit_m_s2": 1e-9}, ("aibc",),
+                 duration_s=22.0, segments=attached)
+    fails("E5 AIBC estimate stalls and its error persists", broken)
