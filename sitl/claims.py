@@ -174,27 +174,37 @@ def e2_attitude_do_removes_the_torque_error(r: ExperimentResult) -> list[str]:
 # --- E3, Fig. 8b -----------------------------------------------------------------------------
 
 
-def e3_do_beat_pid_and_aibc_in_wind(r: ExperimentResult) -> list[str]:
-    """Over the ISM+DO attitude loop in 3 m/s turbulence the position DOs follow the drag
-    fluctuation that PID's integral (slowest pole 0.23 rad/s) cannot: their median horizontal
-    RMS error is below half of PID's and AIBC's. And the baselines are what the paper compares
-    with: PID with the paper's omega_c,p = 1.5 rad/s, and AIBC tuned to its local gains, so
-    each has the error that the ideal PID has under the same logged disturbance force
-    (``rms_pid_prediction_m``), within 0.85-1.2 (the attitude loop's lag, the sensing)."""
+def _e3_do_beat(r: ExperimentResult, base: str, band: tuple[float, float]) -> list[str]:
     j = _Judge()
     seg = r.scenario.segments[0].name
     j.require(all(abs(float(w) - 1.5) < 1e-9 for w in r.scenario.position.omega_c_rad_s),
               f"omega_c,p = {r.scenario.position.omega_c_rad_s} (the paper: 1.5)")
-    med = {p: _median(r, "rms_horizontal_error_m", seg, p, "ism_do") for p in PAPER_POSITION}
+    med = {p: _median(r, "rms_horizontal_error_m", seg, p, "ism_do") for p in ("pd_do", "ism_do", base)}
     for do in ("pd_do", "ism_do"):
-        for base in ("pid", "aibc"):
-            j.require(med[do] < 0.5 * med[base], f"{do} {med[do]:.3f} m vs {base} {med[base]:.3f} m")
-    for base in ("pid", "aibc"):
-        act = _per_seed(r, "rms_horizontal_error_m", seg, base)
-        pred = _per_seed(r, "rms_pid_prediction_m", seg, base)
-        ratio = float(np.median([a / p for a, p in zip(act, pred)]))
-        j.require(0.85 < ratio < 1.2, f"{base}: error / ideal-PID prediction = {ratio:.2f}")
+        j.require(med[do] < 0.5 * med[base], f"{do} {med[do]:.3f} m vs {base} {med[base]:.3f} m")
+    act = _per_seed(r, "rms_horizontal_error_m", seg, base)
+    pred = _per_seed(r, "rms_pid_prediction_m", seg, base)
+    ratio = float(np.median([a / p for a, p in zip(act, pred)]))
+    j.require(band[0] < ratio < band[1], f"{base}: error / ideal-PID prediction = {ratio:.2f}")
     return j.failures
+
+
+def e3_do_beat_pid_in_wind(r: ExperimentResult) -> list[str]:
+    """Over the ISM+DO attitude loop in 3 m/s turbulence the position DOs follow the drag
+    fluctuation that PID's integral (slowest pole 0.23 rad/s) cannot: their median horizontal
+    RMS error is below half of PID's. And the PID is the one the paper specifies (omega_c,p =
+    1.5 rad/s): its error is the one the ideal PID has under the same logged disturbance force
+    (``rms_pid_prediction_m``), within 0.85-1.2 (the attitude loop's lag, the sensing), so a
+    broken baseline fails the claim instead of making it easy."""
+    return _e3_do_beat(r, "pid", (0.85, 1.2))
+
+
+def e3_do_beat_aibc_in_wind(r: ExperimentResult) -> list[str]:
+    """As for PID. The AIBC's yardstick is the same ideal PID, within 0.7-1.2: its local gains are
+    the PID's, and the literal estimate h = gamma v~ adds damping (measured ratio ~0.9); an AIBC
+    whose estimate really observes the disturbance (the gain-matched one) is an observer
+    controller and falls far below it, like the DOs."""
+    return _e3_do_beat(r, "aibc", (0.7, 1.2))
 
 
 def e3_attitude_do_lowers_every_position_error(r: ExperimentResult) -> list[str]:
@@ -328,8 +338,10 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("E2 attitude DO removes the torque's error", "E2_chirp_torque",
           "the disturbance is counteracted very closely despite being time-varying.",
           e2_attitude_do_removes_the_torque_error),
-    Claim("E3 DOs beat PID and AIBC in wind", "E3_wind",
-          "PD+DO/ISM+DO best in turbulent wind (Fig. 8b)", e3_do_beat_pid_and_aibc_in_wind),
+    Claim("E3 DOs beat PID in wind", "E3_wind",
+          "PD+DO/ISM+DO best in turbulent wind (Fig. 8b)", e3_do_beat_pid_in_wind),
+    Claim("E3 DOs beat AIBC in wind", "E3_wind",
+          "PD+DO/ISM+DO best in turbulent wind (Fig. 8b)", e3_do_beat_aibc_in_wind),
     Claim("E3 attitude DO lowers every position error", "E3_wind",
           "the position controller performance can be significantly improved in turbulent wind conditions by "
           "simply adding a disturbance observer to the attitude controller.",

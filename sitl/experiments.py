@@ -176,7 +176,7 @@ def draw_figure(result: ExperimentResult, out_dir: Path) -> Path:
 
 
 def _short(name: str) -> str:
-    return {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD"}[name]
+    return {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD", "indi": "INDI"}[name]
 
 
 def summary_table(result: ExperimentResult) -> str:

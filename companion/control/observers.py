@@ -30,7 +30,7 @@ from .vector import (
     sub,
 )
 
-__all__ = ["TorqueObserver", "ForceObserver", "MomentumObserver", "MatchingFilter", "lowpass_step"]
+__all__ = ["TorqueObserver", "ForceObserver", "MomentumObserver", "MatchingFilter", "IncrementalTorque", "lowpass_step"]
 
 
 def lowpass_step(estimate: Vec3, measurement: Vec3, alpha: Vec3) -> Vec3:
@@ -164,13 +164,17 @@ class ForceObserver:
     estimate_n: Vec3 = ZERO3
     matching: MatchingFilter = field(default_factory=MatchingFilter)
     """the acceleration's delay and filter, applied to the force (see the module docstring)"""
+    order: int = 1
+    """equal first-order stages of the low-pass (1: (19); 2: INDI's second-order filter)"""
     _alpha: _Alpha = field(init=False, repr=False)
+    _stages: list[Vec3] = field(default_factory=list, repr=False)
 
     def __post_init__(self) -> None:
         self._alpha = _Alpha(self.bandwidth_rad_s)
 
     def reset(self) -> None:
         self.estimate_n = ZERO3
+        self._stages = []
         self.matching.reset()
 
     def measure(self, specific_force_ned_m_s2: Vec3, force_ned_n: Vec3) -> Vec3:
@@ -193,8 +197,17 @@ class ForceObserver:
         h_meas = self.measure(specific_force_ned_m_s2, force_applied_ned_n)
         if model_force_n is not ZERO3:
             h_meas = sub(h_meas, model_force_n)
-        self.estimate_n = lowpass_step(self.estimate_n, h_meas, self._alpha(dt_s))
-        return self.estimate_n
+        alpha = self._alpha(dt_s)
+        if self.order == 1:
+            self.estimate_n = lowpass_step(self.estimate_n, h_meas, alpha)
+            return self.estimate_n
+        if not self._stages:
+            self._stages = [ZERO3] * self.order
+        y = h_meas
+        for i in range(self.order):
+            y = self._stages[i] = lowpass_step(self._stages[i], y, alpha)
+        self.estimate_n = y
+        return y
 
 
 @dataclass
@@ -238,3 +251,51 @@ class MomentumObserver:
         self._p_hat = p
         self.estimate_n = (g[0] * (momentum[0] - p[0]), g[1] * (momentum[1] - p[1]), g[2] * (momentum[2] - p[2]))
         return self.estimate_n
+
+
+@dataclass
+class IncrementalTorque:
+    """What incremental NDI subtracts (Smeur, Chu & de Croon 2016): ``J0 w'_f - tau_f`` [N m].
+
+    INDI commands ``tau = tau_f + J0 (nu - w'_f)``: the torque the rotors produce now, plus
+    the inertia times the missing angular acceleration. ``w'_f`` is the finite-differenced gyro
+    and ``tau_f`` the applied torque through the rotors' first-order lag (the actuator model),
+    both through the same second-order low-pass (two equal first-order stages): filtered alike,
+    their difference holds no filter lag of the control's own action. No model of the body is
+    used: gyroscopic torque, inertia error and disturbances all arrive in ``w'``.
+    """
+
+    inertia_kg_m2: Vec3
+    filter_rad_s: float
+    actuator_time_constant_s: float
+    estimate_nm: Vec3 = ZERO3
+    _omega_prev: Vec3 | None = field(default=None, repr=False)
+    _actuator: Vec3 = ZERO3
+    _stages: list[Vec3] = field(default_factory=lambda: [ZERO3, ZERO3, ZERO3, ZERO3], repr=False)
+
+    def reset(self) -> None:
+        self.estimate_nm = ZERO3
+        self._omega_prev = None
+        self._actuator = ZERO3
+        self._stages = [ZERO3, ZERO3, ZERO3, ZERO3]
+
+    def update(self, omega_rad_s: Vec3, torque_applied_prev_nm: Vec3, dt_s: float) -> Vec3:
+        prev = self._omega_prev
+        self._omega_prev = omega_rad_s
+        tc = self.actuator_time_constant_s
+        a_act = 1.0 - math.exp(-dt_s / tc) if tc > 0.0 else 1.0
+        self._actuator = lowpass_step(self._actuator, torque_applied_prev_nm, (a_act, a_act, a_act))
+        if prev is None:
+            return self.estimate_nm
+        j, inv = self.inertia_kg_m2, 1.0 / dt_s
+        j_w_dot = (j[0] * (omega_rad_s[0] - prev[0]) * inv, j[1] * (omega_rad_s[1] - prev[1]) * inv,
+                   j[2] * (omega_rad_s[2] - prev[2]) * inv)
+        a = lowpass_alpha(self.filter_rad_s, dt_s)
+        alpha: Vec3 = (a, a, a)
+        st = self._stages
+        st[0] = lowpass_step(st[0], j_w_dot, alpha)
+        st[1] = lowpass_step(st[1], st[0], alpha)
+        st[2] = lowpass_step(st[2], self._actuator, alpha)
+        st[3] = lowpass_step(st[3], st[2], alpha)
+        self.estimate_nm = sub(st[1], st[3])
+        return self.estimate_nm

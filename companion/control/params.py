@@ -110,6 +110,11 @@ class AttitudeGains:
     boundary_layer_rad_s: Vec3 = (1.0, 1.0, 1.0)
     """epsilon of (23), in the units of s (rad/s)."""
     anti_windup: bool = True
+    indi_filter_rad_s: float = 50.0
+    """INDI: the second-order low-pass on the differentiated gyro and the applied torque
+    (Smeur, Chu & de Croon 2016 used 50 rad/s)."""
+    indi_actuator_time_constant_s: float = 0.02
+    """INDI's rotor model: the applied torque reaches the body through this first-order lag."""
 
 
 @dataclass(frozen=True)
@@ -137,6 +142,10 @@ class PositionGains:
     9.5 m/s^2 that the 45 degree hover of E5 needs, so it stops wind-up without capping a
     disturbance the vehicle could actually hold against."""
     anti_windup: bool = True
+    indi_filter_rad_s: Vec3 = (10.0, 10.0, 10.0)
+    """INDI (Tal & Karaman 2018): the second-order low-pass on the measured acceleration and the
+    force, f = f_f + m0 (a_ref - a_f); 10 rad/s sits above the 1.5 rad/s loop and below the
+    ~0.1 s of the tracking-data differentiation."""
     observer_uses_imu: bool = True
     """Acceleration source of the force DO: the accelerometer's specific force rotated to NED
     (true), or differentiated, filtered tracking positions (false: the paper's experiments, and

@@ -8,6 +8,12 @@ All four share the PID's local closed-loop gains (section V): ``K_v = 2 omega_c`
             with h the velocity-based estimate of bandwidth gamma (see below)
     PD+DO   f = f0 - h_f_hat                                                    (29), (30)
     ISM+DO  f = f0 - h_f_hat - K_f sat(s_p / eps_p)                             (29)-(31)
+    INDI    f = f_f + m0 (a_ref - a_f) = f0 - LP2(m0 (r_dd - g e3) - f)
+
+INDI for the outer loop (Tal & Karaman 2018): the force now, plus the mass times the missing
+acceleration, with the measured acceleration and the force through the same second-order
+low-pass (``indi_filter_rad_s``). Written out it is PD plus a second-order estimate of the same
+measurement as (30): the incremental form and the DO differ in the filter, not the signal.
 
 ``f0 = m0 (r_dd_d - g e3 - K_v v~ - K_p r~)``; the gravity term makes the hover force
 ``-m0 g e3`` (up).
@@ -59,7 +65,7 @@ __all__ = [
     "PositionController",
 ]
 
-POSITION_CONTROLLERS = ("pid", "aibc", "pd_do", "ism_do")
+POSITION_CONTROLLERS = ("pid", "aibc", "pd_do", "ism_do", "indi")
 
 
 def aibc_coefficients(omega_c_rad_s: float) -> tuple[float, float, float]:
@@ -142,6 +148,8 @@ class PositionController:
         vel_matching = MatchingFilter(g.observer_match_delay_s, g.observer_match_cutoff_hz,
                                       max(g.observer_match_order - 1, 0))
         self.aibc_observer = MomentumObserver(self.mass_kg, g.aibc_gamma_per_s, matching=vel_matching)
+        if self.kind == "indi":  # INDI: the same measurement, through a second-order filter
+            self.observer = ForceObserver(self.mass_kg, g.indi_filter_rad_s, matching=matching, order=2)
         if self.kind == "aibc":
             coeffs = [aibc_coefficients_per_vehicle(w) for w in g.omega_c_rad_s]
             c1 = tuple(c[0] for c in coeffs)

@@ -196,6 +196,18 @@ MUTATIONS: tuple[Mutation, ...] = (
         (f"{POS}::test_ism_do_closed_loop_is_the_pid_inside_the_layer",),
     ),
     Mutation(
+        "INDI without its rotor model", "companion/control/observers.py",
+        (("a_act = 1.0 - math.exp(-dt_s / tc) if tc > 0.0 else 1.0", "a_act = 1.0"),),
+        "INDI must compare w' with the torque the rotors produce, not the one requested",
+        (f"{INDI}::test_indi_measures_the_torque_through_its_second_order_filter",),
+    ),
+    Mutation(
+        "INDI filters only the gyro", "companion/control/observers.py",
+        (("        st[3] = lowpass_step(st[3], st[2], alpha)\n", "        st[3] = st[2]\n"),),
+        "INDI's two signals must pass the same filter, or the difference holds its own lag",
+        (f"{INDI}::test_indi_measures_the_torque_through_its_second_order_filter",),
+    ),
+    Mutation(
         "allocation roll row sign", "companion/control/allocation.py",
         (("torque = (arm * kf * (w2 - w4),", "torque = (arm * kf * (w4 - w2),"),),
         "(4) in FRD: a positive tau_x rolls right",
