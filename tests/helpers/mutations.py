@@ -164,7 +164,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     ),
     Mutation(
         "rate command not limited", "companion/control/reference.py",
-        (("clip_norm(raw, self.params.rate_limit_rad_s)", "raw"),),
+        (("o, limit = self.omega_d, self.params.rate_limit_rad_s", "o, limit = self.omega_d, 1e9"),),
         "the gyro-safe 250 deg/s limit",
         (f"{REF}::test_rate_reference_never_exceeds_the_limit",),
     ),
