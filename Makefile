@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 OUT ?= results
 
-.PHONY: setup demo experiments test lint bench fuzz clean
+.PHONY: setup demo experiments test lint bench fuzz mutations clean
 
 # the runtime alone for the demo (pip install . : NumPy, Matplotlib, pymavlink); the test tools on top for make test
 $(VENV)/.runtime: pyproject.toml
@@ -32,6 +32,11 @@ test: setup lint
 FUZZ_EXAMPLES ?= 20000
 fuzz: setup
 	FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(PY) -m pytest -q tests/fuzz --durations=0
+
+# the named mutation list of the control core (tests/helpers/mutations.py); CI runs it as
+# tests/test_mutations.py, this target also writes the score to docs/mutations.md
+mutations: setup
+	cd tests && PYTHONPATH=. $(abspath $(PY)) -m helpers.mutations --report ../docs/mutations.md
 
 lint: setup
 	$(VENV)/bin/ruff check companion sitl tests benchmarks

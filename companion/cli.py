@@ -6,6 +6,7 @@
     companion check missions/*.toml
     companion demo                     # start the bundled vehicle, fly hover45 and waypoints
     companion keygen ~/.config/mavlink.key   # a new signing key (file mode 600)
+    companion estimate flight.ulg --mass 1.0     # the external force over a logged flight
     companion fly missions/hover45.toml --signing-key-file ~/.config/mavlink.key
 
 MAVLink 2 signing is on when a key is given, from ``--signing-key-file FILE`` or the environment
@@ -123,6 +124,32 @@ def _keygen(args: argparse.Namespace) -> int:
     return 0
 
 
+def _estimate(args: argparse.Namespace) -> int:
+    from .estimate import estimate_force, plot, rms, write_csv
+    from .logs import read_log
+
+    try:
+        series = read_log(args.log, args.columns, thrust_is_newtons=args.thrust_newtons, world_frame=args.world,
+                          body_frame=args.body)
+        est = estimate_force(series, args.mass, args.gamma, args.thrust_scale, args.method, args.motor_tau)
+    except (OSError, ValueError, RuntimeError) as exc:
+        print(f"companion: error: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = Path(args.log).name.split(".")[0]
+    write_csv(est, out / f"{stem}_force.csv")
+    plot(est, out / f"{stem}_force.png", series.source)
+    print(f"{series.source}: {len(est.t_s)} samples over {est.t_s[-1]:.1f} s, {est.method}")
+    if est.thrust_scale_n is not None:
+        how = " (estimated)" if est.thrust_scale_estimated else ""
+        print(f"thrust scale {est.thrust_scale_n:.3f} N at full thrust{how}")
+    if est.truth_force_ned_n is not None:
+        print(f"RMS error against the logged truth: {rms(est.force_ned_n - est.truth_force_ned_n):.3f} N")
+    print(f"-> {out / f'{stem}_force.csv'}, {out / f'{stem}_force.png'}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="companion", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -165,6 +192,19 @@ def main(argv: Sequence[str] | None = None) -> int:
                       "(in lockstep it flies as fast as the companion answers, up to this)")
     demo.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc"), default="ism_do")
     demo.set_defaults(func=_demo)
+    est = sub.add_parser("estimate", help="the external force over a logged flight (ULog, tlog or CSV)")
+    est.add_argument("log", help=".ulg (PX4), .tlog (MAVLink) or .csv/.csv.gz (with --columns)")
+    est.add_argument("--mass", type=float, required=True, help="vehicle mass [kg]")
+    est.add_argument("--thrust-scale", type=float, help="thrust [N] at normalised 1.0 (default: estimated)")
+    est.add_argument("--gamma", type=float, default=5.0, help="observer bandwidth [rad/s] (default 5)")
+    est.add_argument("--method", choices=("auto", "accelerometer", "velocity"), default="auto")
+    est.add_argument("--motor-tau", type=float, default=0.0, help="rotor time constant [s] for logged commands")
+    est.add_argument("--columns", help="CSV: FIELD=COLUMN,... (t,qw,qx,qy,qz,ax,ay,az,vx,vy,vz,thrust) or 'sitl'")
+    est.add_argument("--thrust-newtons", action="store_true", help="CSV: the thrust column is in newtons")
+    est.add_argument("--world", choices=("ned", "enu"), default="ned", help="CSV: world frame")
+    est.add_argument("--body", choices=("frd", "flu"), default="frd", help="CSV: body frame")
+    est.add_argument("--out", default="estimates", help="output folder")
+    est.set_defaults(func=_estimate)
     keygen = sub.add_parser("keygen", help="write a new random MAVLink 2 signing key to a file (mode 600)")
     keygen.add_argument("file")
     keygen.set_defaults(func=_keygen)

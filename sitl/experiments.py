@@ -3,6 +3,7 @@
     sitl-experiments all --out results          # E1-E5
     sitl-experiments E1_step_force E5_suspended_weight --jobs 2
     sitl-experiments sitl/scenarios/E3_wind.toml --seeds 100
+    sitl-experiments E3_calm --set position.force_source=measured --out results/measured
 
 Per scenario, in ``OUT/<name>/``: one gzipped CSV time series per run (``runs/``), a metrics
 table (``metrics.csv``: one row per controller combination, seed and segment) and a PNG figure.
@@ -26,7 +27,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from .metrics import SegmentMetrics, flight_metrics
-from .scenario import SCENARIO_DIR, Scenario, load_scenario
+from .scenario import SCENARIO_DIR, Scenario, apply_settings, load_scenario, parse_setting
 from .simulation import FlightLog, simulate
 
 __all__ = ["Case", "ExperimentResult", "run_experiment", "main", "PAPER_EXPERIMENTS"]
@@ -175,7 +176,7 @@ def draw_figure(result: ExperimentResult, out_dir: Path) -> Path:
 
 
 def _short(name: str) -> str:
-    return {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD"}[name]
+    return {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD", "indi": "INDI"}[name]
 
 
 def summary_table(result: ExperimentResult) -> str:
@@ -196,7 +197,23 @@ def summary_table(result: ExperimentResult) -> str:
             lines.append("| " + " | ".join(cells) + " |")
     n_seeds = len(next(iter(combos.values())))
     lines += ["", f"(median over {n_seeds} seed{'s' if n_seeds > 1 else ''})", ""]
+    lines += claims_table(result)
     return "\n".join(lines)
+
+
+def claims_table(result: ExperimentResult) -> list[str]:
+    """The paper's claims about this scenario (sitl/claims.py), judged on this result."""
+    from .claims import claims_for, judge
+
+    out = []
+    for c in claims_for(result.scenario.name):
+        try:
+            v = judge(c, result)
+        except KeyError as exc:  # a controller the claim needs was not flown
+            out.append(f"- {c.name}: not judged ({exc})")
+            continue
+        out.append(f"- {c.name}: **{'holds' if v.holds else 'FAILS'}**" + ("" if v.holds else f" ({v.detail})"))
+    return (["Claims (every seed; E3: medians):", "", *out, ""]) if out else []
 
 
 def resolve(names: Sequence[str]) -> list[Scenario]:
@@ -218,6 +235,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, help="run seeds 1..N instead of the scenario's own list")
     ap.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
     ap.add_argument("--list", action="store_true", help="list the bundled scenarios and exit")
+    ap.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
+                    help="change a scenario parameter for every scenario run, e.g. position.force_source=measured "
+                         "or position.observer_uses_imu=true (repeatable)")
     args = ap.parse_args(argv)
     if args.list:
         for p in sorted(SCENARIO_DIR.glob("*.toml")):
@@ -227,7 +247,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     try:
         scenarios = resolve(args.scenarios)
-    except ConfigError as exc:
+        settings = dict(parse_setting(s) for s in args.set)
+        scenarios = [apply_settings(sc, settings) for sc in scenarios]
+    except (ConfigError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     seeds = list(range(1, args.seeds + 1)) if args.seeds else None

@@ -19,7 +19,8 @@ from companion.control import quaternion as quat
 from .scenario import Segment
 from .simulation import FlightLog
 
-__all__ = ["SegmentMetrics", "segment_metrics", "flight_metrics", "tilt_deg", "rate_cmd_deg_s", "euler_deg"]
+__all__ = ["SegmentMetrics", "segment_metrics", "flight_metrics", "tilt_deg", "rate_cmd_deg_s", "euler_deg",
+           "pid_prediction"]
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,21 @@ class SegmentMetrics:
     steady_force_estimate_n: float
     """|h_f_hat| averaged over the last fifth of the segment"""
     rms_torque_estimate_error_nm: float
+    peak_body_rate_deg_s: float
+    """largest |omega| (what the gyro must measure: the paper's are rated to 300 deg/s)"""
+    mean_attitude_error_deg: float
+    """mean angle between the attitude and the attitude setpoint"""
+    rms_torque_lowpass_error_nm: float
+    """RMS of h_tau_hat minus the true torque disturbance through the observer's own low-pass
+    (Gamma_a of the scenario): zero for an observer that is exactly (19)"""
+    mean_sliding_att_rad_s: float
+    """|mean of the attitude sliding variable s| over the segment"""
+    rms_pid_prediction_m: float
+    """horizontal RMS error that the ideal PID with the scenario's omega_c,p (a point mass, no
+    inner loop) would have under the disturbance force this flight met: a yardstick for baselines"""
+    force_estimate_drift_n: float
+    """|mean h_f_hat over the last fifth - over the fifth before|: ~0 once an estimate has settled"""
+    peak_speed_m_s: float
 
     def as_row(self) -> dict[str, float | str]:
         return asdict(self)
@@ -66,6 +82,33 @@ def rate_cmd_deg_s(log: FlightLog) -> NDArray[np.float64]:
 
 def _vec(log: FlightLog, a: str, b: str, c: str) -> NDArray[np.float64]:
     return np.stack([log[a], log[b], log[c]], axis=-1)
+
+
+def _lowpass(x: NDArray[np.float64], bandwidth_rad_s: float, dt_s: float) -> NDArray[np.float64]:
+    """First-order low-pass y' = b (x - y), exact for x held over each sample, from y = 0."""
+    a = 1.0 - math.exp(-bandwidth_rad_s * dt_s)
+    y = np.empty_like(x)
+    acc = 0.0
+    for k, v in enumerate(x):
+        acc += a * (v - acc)
+        y[k] = acc
+    return y
+
+
+def pid_prediction(t: NDArray[np.float64], force_n: NDArray[np.float64], mass_kg: float,
+                   omega_c_rad_s: float) -> NDArray[np.float64]:
+    """Position error of a point mass under the ideal PID of section V (``K_v = 2 w``,
+    ``K_p = w^2``, ``K_i = w / 4``) driven by ``force_n(t)``, from rest (semi-implicit Euler)."""
+    kv, kp, ki = 2.0 * omega_c_rad_s, omega_c_rad_s**2, 0.25 * omega_c_rad_s
+    x = v = xi = 0.0
+    out = np.empty_like(force_n)
+    dt = np.diff(t, prepend=t[0])
+    for k, h in enumerate(force_n):
+        xi += x * dt[k]
+        v += (h / mass_kg - kv * v - kp * x - ki * xi) * dt[k]
+        x += v * dt[k]
+        out[k] = x
+    return out
 
 
 def segment_metrics(log: FlightLog, seg: Segment) -> SegmentMetrics:
@@ -103,6 +146,21 @@ def segment_metrics(log: FlightLog, seg: Segment) -> SegmentMetrics:
     f_err = np.linalg.norm(_vec(log, "hfx_hat", "hfy_hat", "hfz_hat")[m] - _vec(log, "hfx", "hfy", "hfz")[m], axis=1)
     t_err = np.linalg.norm(_vec(log, "htx_hat", "hty_hat", "htz_hat")[m] - _vec(log, "htx", "hty", "htz")[m], axis=1)
     f_hat = _vec(log, "hfx_hat", "hfy_hat", "hfz_hat")[m]
+    sc = log.scenario
+    q = (log["qw"], log["qx"], log["qy"], log["qz"])
+    q_d = (log["qw_d"], log["qx_d"], log["qy_d"], log["qz_d"])
+    att_err = np.degrees(quat.angle_between(q, q_d))[m]  # type: ignore[arg-type]
+    dt_log = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    gamma_a = sc.attitude.observer_gain_rad_s
+    lp_err = np.stack([log[f"ht{a}_hat"] - _lowpass(log[f"ht{a}"], float(gamma_a[i]), dt_log)
+                       for i, a in enumerate("xyz")], axis=-1)[m]
+    s_att_mean = _vec(log, "sx_att", "sy_att", "sz_att")[m].mean(axis=0)
+    w_c = sc.position.omega_c_rad_s
+    pred = [pid_prediction(t, log[f"hf{a}"], float(sc.vehicle.mass_kg), float(w_c[i])) for i, a in enumerate("xy")]
+    pred_h = np.sqrt(pred[0][m] ** 2 + pred[1][m] ** 2)
+    f_tail = f_hat[-n_tail:].mean(axis=0)
+    before = f_hat[max(0, len(f_hat) - 2 * n_tail):len(f_hat) - n_tail]
+    f_before = before.mean(axis=0) if len(before) else f_tail
     return SegmentMetrics(
         segment=seg.name,
         rms_error_m=float(np.sqrt(np.mean(dist**2))),
@@ -120,6 +178,13 @@ def segment_metrics(log: FlightLog, seg: Segment) -> SegmentMetrics:
         rms_force_estimate_error_n=float(np.sqrt(np.mean(f_err[half] ** 2))),
         steady_force_estimate_n=float(np.linalg.norm(f_hat[-n_tail:].mean(axis=0))),
         rms_torque_estimate_error_nm=float(np.sqrt(np.mean(t_err[half] ** 2))),
+        peak_body_rate_deg_s=float(np.degrees(np.linalg.norm(_vec(log, "p", "q", "r")[m], axis=1).max())),
+        mean_attitude_error_deg=float(att_err.mean()),
+        rms_torque_lowpass_error_nm=float(np.sqrt(np.mean(np.sum(lp_err**2, axis=1)))),
+        mean_sliding_att_rad_s=float(np.linalg.norm(s_att_mean)),
+        rms_pid_prediction_m=float(np.sqrt(np.mean(pred_h**2))),
+        force_estimate_drift_n=float(np.linalg.norm(f_tail - f_before)),
+        peak_speed_m_s=float(np.linalg.norm(_vec(log, "vx", "vy", "vz")[m], axis=1).max()),
     )
 
 

@@ -109,7 +109,8 @@ class OnboardAttitudeLoop:
         return tuple(lo + _round((w - lo) / step) * step for w in ws)  # type: ignore[return-value]
 
     def update(self, q: Quat, omega_rad_s: Vec3, sp: AttitudeSetpoint, dt_s: float) -> Rotors4:
-        tau = self.controller.update(q, omega_rad_s, sp.q_d, sp.omega_d_rad_s, self.torque_applied_nm, dt_s)
+        tau = self.controller.update(q, omega_rad_s, sp.q_d, sp.omega_d_rad_s, self.torque_applied_nm, dt_s,
+                                     sp.omega_d_dot_rad_s2)
         cmd = self.quantise_all(rotor_speeds_sq_for(tau, sp.thrust_n, self.vehicle))
         self.torque_applied_nm, self.thrust_applied_n = wrench_from_rotor_speeds(cmd, self.vehicle)
         self.rotor_cmd_rad_s = cmd

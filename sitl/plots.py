@@ -21,12 +21,12 @@ from .simulation import FlightLog  # noqa: E402
 
 __all__ = ["FIGURES", "draw", "label", "boxplot_figure"]
 
-COLORS = {"pid": "tab:gray", "aibc": "tab:orange", "pd_do": "tab:blue", "ism_do": "tab:red"}
-STYLES = {"ism_do": "-", "pd_do": "--", "pd": ":"}
+COLORS = {"pid": "tab:gray", "aibc": "tab:orange", "pd_do": "tab:blue", "ism_do": "tab:red", "indi": "tab:green"}
+STYLES = {"ism_do": "-", "pd_do": "--", "pd": ":", "indi": "-."}
 
 
 def label(log: FlightLog) -> str:
-    names = {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD"}
+    names = {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD", "indi": "INDI"}
     return f"{names[log.position]} / att. {names[log.attitude]}"
 
 

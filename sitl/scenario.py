@@ -15,6 +15,8 @@ from pathlib import Path
 from companion.config import load_dataclass, load_toml
 from companion.control.attitude import ATTITUDE_CONTROLLERS
 from companion.control.params import (
+    from_mapping,
+    to_mapping,
     AttitudeGains,
     PositionGains,
     ReferenceParams,
@@ -30,7 +32,8 @@ from .onboard import EstimatorGains
 from .sensors import SensorParams
 from .wind import WindParams
 
-__all__ = ["ModelError", "Waypoint", "Setpoint", "Segment", "Runs", "Scenario", "load_scenario", "SCENARIO_DIR"]
+__all__ = ["ModelError", "Waypoint", "Setpoint", "Segment", "Runs", "Scenario", "load_scenario", "SCENARIO_DIR",
+           "apply_settings", "parse_setting"]
 
 SCENARIO_DIR = Path(__file__).parent / "scenarios"
 
@@ -153,3 +156,31 @@ def load_scenario(path: str | Path) -> Scenario:
     data, text = load_toml(p)
     data.setdefault("name", p.stem)
     return load_dataclass(Scenario, data, p, text)
+
+
+def parse_setting(text: str) -> tuple[str, object]:
+    """``"position.force_source=measured"`` -> ``("position.force_source", "measured")``; the value
+    is read as a TOML value (``false``, ``1.5``, ``[3, 3, 1.5]``), or else kept as a string."""
+    import tomllib
+
+    key, sep, raw = text.partition("=")
+    if not sep or "." not in key:
+        raise ValueError(f"{text!r}: expected TABLE.KEY=VALUE, e.g. position.force_source=measured")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key.strip(), value
+
+
+def apply_settings(sc: Scenario, settings: dict[str, object]) -> Scenario:
+    """The scenario with ``{"table.key": value}`` applied, each checked like a file's value."""
+    for path, value in settings.items():
+        table, _, key = path.partition(".")
+        sub = getattr(sc, table, None)
+        if not dataclasses.is_dataclass(sub):
+            raise ValueError(f"{path!r}: {table!r} is not a table of the scenario")
+        data = to_mapping(sub)
+        data[key] = value
+        sc = sc.with_changes(**{table: from_mapping(type(sub), data, table)})
+    return sc

@@ -70,16 +70,36 @@ class FlightLog:
         return self.columns["t"]
 
     def vehicle(self, i: int) -> FlightLog:
-        """One vehicle of a batch log."""
+        """One vehicle of a batch log (with its own gains, where the batch had per-vehicle gains)."""
         cols = {k: (v if v.ndim == 1 else v[:, i]) for k, v in self.columns.items()}
         seeds = self.seeds[i] if isinstance(self.seeds, tuple) else self.seeds
-        return FlightLog(cols, self.scenario, self.position, self.attitude, seeds)
+        return FlightLog(cols, _scenario_of_vehicle(self.scenario, i), self.position, self.attitude, seeds)
 
     def to_csv(self, path: str) -> None:
         if any(v.ndim != 1 for v in self.columns.values()):
             raise ValueError("write one vehicle at a time (FlightLog.vehicle(i))")
         data = np.column_stack([self.columns[c] for c in LOG_COLUMNS])
         np.savetxt(path, data, delimiter=",", header=",".join(LOG_COLUMNS), comments="", fmt="%.7g")
+
+
+def _scenario_of_vehicle(sc: Scenario, i: int) -> Scenario:
+    """``sc`` with every per-vehicle gain array (sweeps, tuning) replaced by vehicle i's value."""
+    import dataclasses
+
+    def pick(v: object) -> object:
+        if isinstance(v, np.ndarray):
+            return float(v.reshape(-1)[i]) if v.size > 1 else float(v.reshape(-1)[0])
+        if isinstance(v, tuple):
+            return tuple(pick(x) for x in v)
+        return v
+
+    changes = {}
+    for table in ("attitude", "position"):
+        sub = getattr(sc, table)
+        fields = {f.name: pick(getattr(sub, f.name)) for f in dataclasses.fields(sub)}
+        if any(fields[k] is not getattr(sub, k) for k in fields):
+            changes[table] = dataclasses.replace(sub, **fields)
+    return sc.with_changes(**changes) if changes else sc
 
 
 class Simulation:

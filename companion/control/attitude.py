@@ -6,6 +6,12 @@ robust term ``tau_1`` of (23)::
     PD       tau = tau_0
     PD+DO    tau = tau_0 - h_tau_hat
     ISM+DO   tau = tau_0 - h_tau_hat - K_w sat(s / eps)
+    INDI     tau = tau_f + J0 (nu - w'_f)        nu = tau_0 / J0 without the gyroscopic model
+
+INDI (incremental nonlinear dynamic inversion, Smeur, Chu & de Croon 2016) is the state of the
+art the paper's approach is compared with in practice; it shares the error and the desired
+angular acceleration ``nu`` of (13), and replaces the model by the measured angular
+acceleration (:class:`~.observers.IncrementalTorque`).
 
 Error function ``H = eps~^T eps~`` gives the feedback vector ``e = 2 eta~ eps~``, stable at both
 ``eta~ = +-1``: ``q`` and ``-q`` give the same torque, so there is no unwinding and no sign logic.
@@ -17,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from . import quaternion as quat
-from .observers import TorqueObserver
+from .observers import IncrementalTorque, TorqueObserver
 from .params import AttitudeGains
 from .quaternion import Quat
 from .vector import (
@@ -25,6 +31,8 @@ from .vector import (
     Real,
     Vec3,
     absolute,
+    add,
+    cross,
     mul,
     sat,
     sub,
@@ -42,7 +50,7 @@ __all__ = [
     "AttitudeController",
 ]
 
-ATTITUDE_CONTROLLERS = ("pd", "pd_do", "ism_do")
+ATTITUDE_CONTROLLERS = ("pd", "pd_do", "ism_do", "indi")
 
 
 def attitude_error(q: Quat, q_d: Quat) -> Quat:
@@ -142,6 +150,7 @@ class AttitudeController:
     """last sliding variable, for logs"""
     _started: bool = field(default=False, repr=False)
     observer: TorqueObserver = field(init=False)
+    _omega: Vec3 = field(default=ZERO3, repr=False)
 
     def __post_init__(self) -> None:
         if self.kind not in ATTITUDE_CONTROLLERS:
@@ -153,12 +162,15 @@ class AttitudeController:
         self._eps = eps
         # K = k_s J0 (inside the layer), K_w = K eps
         self._k_w = mul(mul(self.gains.sliding_gain_rad_s, self.inertia_kg_m2), eps)
-        self._uses_observer = self.kind != "pd"
+        self._uses_observer = self.kind in ("pd_do", "ism_do")
         self._uses_ism = self.kind == "ism_do"
+        self.incremental = IncrementalTorque(self.inertia_kg_m2, self.gains.indi_filter_rad_s,
+                                             self.gains.indi_actuator_time_constant_s)
 
     def reset(self) -> None:
         self.reset_integral()
         self.observer.reset()
+        self.incremental.reset()
 
     def reset_integral(self) -> None:
         """Restart the sliding mode from the current error (z = -s0) at the next update: for a
@@ -169,6 +181,9 @@ class AttitudeController:
 
     @property
     def disturbance_estimate_nm(self) -> Vec3:
+        if self.kind == "indi":  # what INDI cancels, less the gyroscopic torque it includes
+            w, j = self._omega, self.inertia_kg_m2
+            return add(self.incremental.estimate_nm, cross(w, mul(j, w)))
         return self.observer.estimate_nm
 
     def update(
@@ -184,6 +199,12 @@ class AttitudeController:
         """Requested body torque [N m] for this step."""
         err = AttitudeError.of(q, omega_rad_s, q_d, omega_d_rad_s)
         tau = nominal_torque(err, omega_rad_s, omega_d_dot_rad_s2, self.inertia_kg_m2, self._k_v, self._c)
+        if self.kind == "indi":
+            # J0 nu = tau_0 - w x J0 w; tau = tau_f + J0 nu - J0 w'_f
+            self._omega = w = omega_rad_s
+            j = self.inertia_kg_m2
+            measured = self.incremental.update(omega_rad_s, torque_applied_prev_nm, dt_s)
+            return sub(sub(tau, cross(w, mul(j, w))), measured)
         if self._uses_observer:
             h_hat = self.observer.update(omega_rad_s, torque_applied_prev_nm, dt_s)
             tau = sub(tau, h_hat)

@@ -31,7 +31,11 @@ __all__ = [
     "from_mapping",
     "to_mapping",
     "attitude_stability_margin",
+    "FORCE_SOURCES",
 ]
+
+FORCE_SOURCES = ("commanded", "measured")
+"""The force observer's force input (30): see :attr:`PositionGains.force_source`."""
 
 
 class ParamError(ValueError):
@@ -106,6 +110,11 @@ class AttitudeGains:
     boundary_layer_rad_s: Vec3 = (1.0, 1.0, 1.0)
     """epsilon of (23), in the units of s (rad/s)."""
     anti_windup: bool = True
+    indi_filter_rad_s: float = 50.0
+    """INDI: the second-order low-pass on the differentiated gyro and the applied torque
+    (Smeur, Chu & de Croon 2016 used 50 rad/s)."""
+    indi_actuator_time_constant_s: float = 0.02
+    """INDI's rotor model: the applied torque reaches the body through this first-order lag."""
 
 
 @dataclass(frozen=True)
@@ -123,14 +132,50 @@ class PositionGains:
     """K_f / (m0 epsilon_p): the paper's K_sf = 1.5 m0 with epsilon = 1."""
     boundary_layer_m_s: Vec3 = (1.0, 1.0, 1.0)
     aibc_gamma_per_s: Vec3 = (4.0, 4.0, 2.0)
-    """AIBC's velocity-based estimate h = gamma * velocity error."""
+    """AIBC's velocity-based estimate: the bandwidth of its observer (``aibc_estimate``)."""
+    aibc_estimate: str = "observer"
+    """``"observer"``: a velocity-error observer, zero in nominal flight, so the AIBC keeps the
+    PID's local gains (section V); ``"velocity_feedback"``: the literal ``h = gamma v~``, which
+    adds gamma to the velocity gain (:mod:`~companion.control.position`)."""
     integral_limit_m_s2: float = 20.0
     """Bound on the PID/AIBC integral term K_i xi [m/s^2] (anti-windup). About 2 g: above the
     9.5 m/s^2 that the 45 degree hover of E5 needs, so it stops wind-up without capping a
     disturbance the vehicle could actually hold against."""
     anti_windup: bool = True
+    indi_filter_rad_s: Vec3 = (10.0, 10.0, 10.0)
+    """INDI (Tal & Karaman 2018): the second-order low-pass on the measured acceleration and the
+    force, f = f_f + m0 (a_ref - a_f); 10 rad/s sits above the 1.5 rad/s loop and below the
+    ~0.1 s of the tracking-data differentiation."""
     observer_uses_imu: bool = True
-    """Force DO from the accelerometer's specific force (else from differentiated position)."""
+    """Acceleration source of the force DO: the accelerometer's specific force rotated to NED
+    (true), or differentiated, filtered tracking positions (false: the paper's experiments, and
+    the E1-E5 scenario files). A companion flying a real autopilot has the accelerometer."""
+    force_source: str = "commanded"
+    """What the force DO (30) subtracts from ``m0 (r_dd - g e3)``:
+
+    - ``"commanded"`` (the paper's): the virtual force ``f = -T R(q_d) e3`` the position loop
+      sent (after the tilt and thrust limits). The estimate then also holds whatever the inner
+      attitude loop fails to deliver, and the position loop compensates it: right for a
+      sluggish or biased inner loop.
+    - ``"measured"``: ``-T R(q) e3`` with the measured attitude. The estimate is the true
+      external force (plus thrust-model error), and inner-loop error is left uncompensated:
+      right when the force itself is wanted (interaction, logging, ``companion estimate``).
+    """
+
+    observer_match_delay_s: float = 0.0
+    observer_match_cutoff_hz: float = 0.0
+    """The force input of (30) is delayed by ``observer_match_delay_s`` and low-passed by
+    ``observer_match_order`` first-order filters at ``observer_match_cutoff_hz`` (0: not
+    filtered), to match how the acceleration was obtained: for differentiated tracking data
+    (``observer_uses_imu = false``) its delay and filters, so that the difference in (30) sees
+    the disturbance and not the force's change over that delay (:class:`MatchingFilter`)."""
+    observer_match_order: int = 2
+
+    def __post_init__(self) -> None:
+        if self.aibc_estimate not in ("observer", "velocity_feedback"):
+            raise ValueError(f"aibc_estimate: expected observer or velocity_feedback, got {self.aibc_estimate!r}")
+        if self.force_source not in FORCE_SOURCES:
+            raise ValueError(f"force_source: expected one of {', '.join(FORCE_SOURCES)}, got {self.force_source!r}")
 
     def k_v(self) -> Vec3:
         w = self.omega_c_rad_s
@@ -157,7 +202,12 @@ class ReferenceParams:
     """|omega_d| limit: the paper's gyro-safe 250 deg/s."""
     rate_filter_time_constant_s: float = 0.05
     """Low-pass on omega_d of (34), which differentiates a reference that jumps with every new
-    position sample; 0.05 s keeps the hover rate command near 4 deg/s RMS (docs/architecture.md)."""
+    position sample (or on the attitude reference, with ``filter_attitude``); 0.05 s keeps the
+    hover rate command near 4 deg/s RMS (docs/architecture.md)."""
+    filter_attitude: bool = False
+    """Filter and rate-limit the attitude reference itself so that omega_d is its exact motion
+    (bounds the body rate by the limit; adds the filter's lag to the position loop), instead of
+    the rate command alone: :class:`~companion.control.reference.RateReference`."""
 
 
 @dataclass(frozen=True)

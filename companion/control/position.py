@@ -4,10 +4,16 @@ All four share the PID's local closed-loop gains (section V): ``K_v = 2 omega_c`
 ``K_p = omega_c^2``, ``K_i = omega_c / 4``::
 
     PID     f = m0 (r_dd_d - g e3 - K_v v~ - K_p r~ - K_i xi)                    xi = int r~
-    AIBC    f = m0 (r_dd_d - g e3 - (1 + lam + c1 c2) r~ - (c1 + c2) v~ - c2 lam xi - h)
-            with h = gamma v~, the velocity-based estimate
+    AIBC    f = m0 (r_dd_d - g e3 - (1 + lam + c1 c2) r~ - (c1 + c2) v~ - c2 lam xi) - h
+            with h the velocity-based estimate of bandwidth gamma (see below)
     PD+DO   f = f0 - h_f_hat                                                    (29), (30)
     ISM+DO  f = f0 - h_f_hat - K_f sat(s_p / eps_p)                             (29)-(31)
+    INDI    f = f_f + m0 (a_ref - a_f) = f0 - LP2(m0 (r_dd - g e3) - f)
+
+INDI for the outer loop (Tal & Karaman 2018): the force now, plus the mass times the missing
+acceleration, with the measured acceleration and the force through the same second-order
+low-pass (``indi_filter_rad_s``). Written out it is PD plus a second-order estimate of the same
+measurement as (30): the incremental form and the DO differ in the filter, not the signal.
 
 ``f0 = m0 (r_dd_d - g e3 - K_v v~ - K_p r~)``; the gravity term makes the hover force
 ``-m0 g e3`` (up).
@@ -17,6 +23,17 @@ backstepping of [18], [19] with ``e1 = r~``, ``e2 = v~ + c1 e1 + lam xi`` and
 ``V = 1/2 (lam xi^2 + e1^2 + e2^2)`` gives ``V' = -c1 e1^2 - c2 e2^2`` for the law above. Its
 characteristic polynomial ``s^3 + (c1 + c2) s^2 + (1 + lam + c1 c2) s + c2 lam`` equals the PID's
 ``s^3 + K_v s^2 + K_p s + K_i`` when :func:`aibc_coefficients` picks c1, c2, lam.
+
+AIBC's estimate, "h_x = gamma e'" in the paper, must not undo that match (section V: the same
+local closed-loop gains). Read as ``h = gamma v~`` it is velocity feedback: the velocity gain
+becomes ``c1 + c2 + gamma`` (3 -> 7 or 11 with the paper's gamma), and no positive c1, c2, lam
+can absorb it (that needs ``c1 + c2 = 2 w - gamma < 0`` for gamma > 3); the same holds for any
+estimate that is a linear function of the tracking errors (``h' = gamma v~`` would need
+``1 + lam + c1 c2 = w^2 - gamma < 0``). So the estimate is an observer that is zero in nominal
+flight, driven by the velocity error alone (:class:`~.observers.MomentumObserver` on
+``v~' = f / m0 + g e3 - r_dd_d + h / m0``, bandwidth gamma): the matched poles stay the PID's,
+and the estimate converges to a constant. ``aibc_estimate = "velocity_feedback"`` keeps the
+literal reading for comparison.
 """
 
 from __future__ import annotations
@@ -26,7 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .attitude import _integrate_with_reset
-from .observers import ForceObserver
+from .observers import ForceObserver, MatchingFilter, MomentumObserver
 from .params import PositionGains
 from .vector import (
     ZERO3,
@@ -48,7 +65,7 @@ __all__ = [
     "PositionController",
 ]
 
-POSITION_CONTROLLERS = ("pid", "aibc", "pd_do", "ism_do")
+POSITION_CONTROLLERS = ("pid", "aibc", "pd_do", "ism_do", "indi")
 
 
 def aibc_coefficients(omega_c_rad_s: float) -> tuple[float, float, float]:
@@ -101,8 +118,9 @@ class PositionController:
     """One of POSITION_CONTROLLERS; :meth:`update` returns the force f [N, NED].
 
     ``specific_force_ned`` is ``r_dd - g e3`` (accelerometer rotated to NED, or differentiated
-    position minus gravity), ``force_applied_prev_n`` is ``-T R(q) e3`` of the thrust commanded in
-    the previous step and the measured attitude: the force observer's inputs (30).
+    position minus gravity), ``force_applied_prev_n`` the previous step's force as the gains'
+    ``force_source`` asks (:func:`~companion.control.outer_loop.observer_force`): the force
+    observer's inputs (30).
     """
 
     kind: str
@@ -124,7 +142,14 @@ class PositionController:
             raise ValueError(f"unknown position controller {self.kind!r}; expected one of {POSITION_CONTROLLERS}")
         g = self.gains
         self._k_v, self._k_p, self._k_i = g.k_v(), g.k_p(), g.k_i()
-        self.observer = ForceObserver(self.mass_kg, g.observer_gain_rad_s)
+        matching = MatchingFilter(g.observer_match_delay_s, g.observer_match_cutoff_hz, g.observer_match_order)
+        self.observer = ForceObserver(self.mass_kg, g.observer_gain_rad_s, matching=matching)
+        # the velocity has one difference and one filter less than the acceleration
+        vel_matching = MatchingFilter(g.observer_match_delay_s, g.observer_match_cutoff_hz,
+                                      max(g.observer_match_order - 1, 0))
+        self.aibc_observer = MomentumObserver(self.mass_kg, g.aibc_gamma_per_s, matching=vel_matching)
+        if self.kind == "indi":  # INDI: the same measurement, through a second-order filter
+            self.observer = ForceObserver(self.mass_kg, g.indi_filter_rad_s, matching=matching, order=2)
         if self.kind == "aibc":
             coeffs = [aibc_coefficients_per_vehicle(w) for w in g.omega_c_rad_s]
             c1 = tuple(c[0] for c in coeffs)
@@ -140,6 +165,7 @@ class PositionController:
         self.xi = self.z = self.s = self.estimate_n = ZERO3
         self._started = False
         self.observer.reset()
+        self.aibc_observer.reset()
 
     def update(
         self,
@@ -160,7 +186,11 @@ class PositionController:
         if kind == "aibc":
             f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, self._aibc_p, self._aibc_v)  # type: ignore[arg-type]
             integral = self._integrate(pos_err_m, self._aibc_i, dt_s)  # type: ignore[arg-type]
-            self.estimate_n = scale(m0, mul(self.gains.aibc_gamma_per_s, vel_err_m_s))
+            if self.gains.aibc_estimate == "velocity_feedback":
+                self.estimate_n = scale(m0, mul(self.gains.aibc_gamma_per_s, vel_err_m_s))
+            else:  # the velocity-error model: v~' = f / m0 + g e3 - r_dd_d + h / m0
+                known = (-accel_ref_m_s2[0], -accel_ref_m_s2[1], g - accel_ref_m_s2[2])
+                self.estimate_n = self.aibc_observer.update(vel_err_m_s, force_applied_prev_n, known, dt_s)
             return sub(sub(f, scale(m0, integral)), self.estimate_n)
         f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, self._k_p, self._k_v)
         if specific_force_ned_m_s2 is not None:

@@ -85,3 +85,16 @@ def test_load_dataclass_reports_constructor_validation(tmp_path):
     with pytest.raises(ConfigError) as e:
         load_dataclass(Scenario, {"name": "x", **data}, p, text)
     assert "lqr" in str(e.value) and e.value.line == 1
+
+
+def test_attitude_sliding_gain_sits_between_25_and_the_rotor_bandwidth():
+    """K = k_s J0 is chosen by two bounds (docs/experiments.md, the attitude boundary layer):
+    (25), 4 k_s J0,min Gamma_a > 1, i.e. k_s > 1 / (4 * 3.5e-3 * 8) = 8.9 rad/s for the
+    Hummingbird's J0; and the sliding dynamics (rate k_s inside the layer) at least four times
+    slower than the rotors' 20 ms lag: k_s <= 1 / (4 * 0.02) = 12.5 rad/s. The paper's 12 fits."""
+    from companion.control.params import AttitudeGains, VehicleParams, attitude_stability_margin
+    from sitl.airframe import AirframeParams
+
+    gains, vehicle = AttitudeGains(), VehicleParams()
+    assert attitude_stability_margin(gains, vehicle) > 1.0
+    assert max(gains.sliding_gain_rad_s) <= 1.0 / (4.0 * AirframeParams().rotor_time_constant_s)

@@ -92,3 +92,46 @@ def test_reference_filter_respects_speed_and_acceleration_limits():
     assert max(accels) <= 8.0 + 1e-9
     np.testing.assert_allclose(r.pos_ned_m, (10.0, 5.0, -3.0), atol=1e-3)
     assert math.isclose(r.yaw_rad, math.radians(90), abs_tol=1e-6)
+
+
+def test_rate_reference_gives_the_angular_acceleration_of_a_speeding_rotation():
+    """A reference about a fixed axis with angle 1/2 alpha t^2: omega_d' = alpha (unfiltered it is
+    exact up to the one-step backward difference of (34), so within 1e-6 after the first steps)."""
+    rr = RateReference(ReferenceParams(rate_filter_time_constant_s=0.0))
+    alpha, dt, axis = 3.0, 0.01, (0.6, 0.0, 0.8)
+    for k in range(50):
+        rr.update(quat.from_axis_angle(axis, 0.5 * alpha * (k * dt) ** 2), dt)
+    np.testing.assert_allclose(rr.omega_d_dot, vec.scale(alpha, axis), atol=1e-6)
+
+
+def test_attitude_reference_and_rate_command_are_one_motion_within_the_limit():
+    """A 120 deg jump of q_d: the attitude sent moves towards it no faster than the limit, and
+    omega_d is exactly its motion (q_ref,k = q_ref,k-1 exp(omega_d t_s)), so an attitude loop
+    that tracks both is never asked to turn faster than the limit (``filter_attitude``)."""
+    rr = RateReference(ReferenceParams(filter_attitude=True))
+    dt, limit = 0.01, math.radians(250)
+    rr.update(quat.IDENTITY, dt)
+    target = quat.from_axis_angle((0.0, 0.6, 0.8), math.radians(120))
+    prev = rr.q_ref
+    for _ in range(200):
+        w = rr.update(target, dt)
+        assert vec.norm(w) <= limit + 1e-9
+        assert quat.angle_between(quat.mul(prev, quat.exp(vec.scale(dt, w))), rr.q_ref) < 1e-12
+        prev = rr.q_ref
+    assert quat.angle_between(rr.q_ref, target) < 1e-6
+
+
+def test_reference_filter_keeps_its_jerk_limit_when_the_speed_saturates():
+    """Reaching the speed limit, the acceleration is brought to zero at the jerk limit instead of
+    being cut in one step (which jumped the attitude reference by 33 deg in E4)."""
+    p = TrajectoryParams(max_speed_m_s=2.0, max_accel_m_s2=6.0, max_jerk_m_s3=20.0, bandwidth_rad_s=3.0)
+    rf = ReferenceFilter(p, (0.0, 0.0, -1.5))
+    dt = 0.01
+    a_prev = (0.0, 0.0, 0.0)
+    worst = 0.0
+    for _ in range(600):
+        r = rf.update((4.0, 0.0, -1.5), 0.0, dt)
+        worst = max(worst, vec.norm(vec.sub(r.accel_ned_m_s2, a_prev)) / dt)
+        a_prev = r.accel_ned_m_s2
+        assert vec.norm(r.vel_ned_m_s) <= 2.0 + 1e-9
+    assert worst <= 20.0 * 1.05

@@ -123,3 +123,16 @@ def test_heavier_plant_is_seen_as_a_downward_force_by_the_observer():
     assert math.isclose(log["hfz_hat"][late].mean(), expected, rel_tol=0.03)
     # the residual offset is the accelerometer bias seen as a force: |b| m0 / (m0 K_p) < 3 cm
     assert abs((log["z"] - log["z_ref"])[late].mean()) < 0.03
+
+
+def test_batch_reproduces_single_vehicle_runs_for_indi_and_the_aibc_observer():
+    """INDI (both loops) and the AIBC's velocity observer are written once for floats and arrays."""
+    from sitl.scenario import load_scenario
+
+    sc = load_scenario("E3_wind").with_changes(duration_s=1.5)
+    for position, attitude in (("indi", "indi"), ("aibc", "ism_do")):
+        batch = simulate(sc, position, attitude, [4, 9])
+        for i, seed in enumerate([4, 9]):
+            one = simulate(sc, position, attitude, seed)
+            np.testing.assert_allclose(batch.vehicle(i)["x"], one["x"], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(batch.vehicle(i)["hfx_hat"], one["hfx_hat"], rtol=0, atol=1e-12)

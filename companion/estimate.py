@@ -1,0 +1,268 @@
+"""The external force on a vehicle, from a flight that already happened (``companion estimate``).
+
+Runs the force observer of the control core over a log: (30) with the logged acceleration (the
+accelerometer's specific force rotated into NED), or its momentum form with the logged velocity
+when there is no accelerometer, against the thrust force ``-T R(q) e3`` of the logged attitude
+and collective thrust. The estimate is the lumped external force, drag included, in NED [N].
+
+The log is first brought to the project's conventions by the readers of
+:mod:`companion.logs` (NED, FRD body, scalar-first quaternions body to NED; the explicit
+converters :func:`enu_to_ned`, :func:`flu_to_frd`, :func:`quat_from_scalar_last` and
+:func:`quat_enu_flu_to_ned_frd` are here for CSV files in other frames). Thrust comes either in
+newtons or normalised (0..1); for the latter the thrust scale (newtons at 1.0) is given or
+estimated from the log, as the scale that makes the mean vertical external force zero (a wrong
+scale is a vertical force: SPEC section 6).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from companion.control import quaternion as quat
+from companion.control.observers import ForceObserver, MomentumObserver
+from companion.control.vector import E3
+
+__all__ = [
+    "FlightSeries",
+    "ForceEstimate",
+    "enu_to_ned",
+    "flu_to_frd",
+    "quat_from_scalar_last",
+    "quat_enu_flu_to_ned_frd",
+    "thrust_force_ned",
+    "estimate_thrust_scale",
+    "estimate_force",
+    "write_csv",
+    "plot",
+]
+
+Array = NDArray[np.float64]
+GRAVITY_M_S2 = 9.81
+
+
+@dataclass(frozen=True)
+class FlightSeries:
+    """One flight on one time base, in the project's conventions. Arrays of shape (N,) or (N, k).
+
+    ``q`` (N, 4): scalar-first, body (FRD) to NED. ``specific_force_body_m_s2`` (N, 3): the
+    accelerometer (FRD), or ``None``; ``vel_ned_m_s`` (N, 3) or ``None``: one of the two is needed.
+    ``thrust``: collective thrust, in newtons if ``thrust_is_newtons`` else normalised 0..1.
+    ``truth_force_ned_n``: the true external force where the log knows it (a simulated flight).
+    """
+
+    t_s: Array
+    q: Array
+    thrust: Array
+    thrust_is_newtons: bool
+    specific_force_body_m_s2: Array | None = None
+    vel_ned_m_s: Array | None = None
+    truth_force_ned_n: Array | None = None
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        n = len(self.t_s)
+        if n < 3:
+            raise ValueError("the log has fewer than 3 samples")
+        if self.specific_force_body_m_s2 is None and self.vel_ned_m_s is None:
+            raise ValueError("the log has neither accelerometer nor velocity: nothing to estimate from")
+        for name in ("q", "thrust", "specific_force_body_m_s2", "vel_ned_m_s", "truth_force_ned_n"):
+            a = getattr(self, name)
+            if a is not None and len(a) != n:
+                raise ValueError(f"{name} has {len(a)} samples, t has {n}")
+
+
+@dataclass(frozen=True)
+class ForceEstimate:
+    t_s: Array
+    force_ned_n: Array
+    """(N, 3) external force estimate, NED [N]"""
+    thrust_scale_n: float | None
+    """newtons at normalised thrust 1.0 (None: the log's thrust was in newtons)"""
+    thrust_scale_estimated: bool
+    method: str
+    """'accelerometer' or 'velocity'"""
+    truth_force_ned_n: Array | None = None
+
+
+# --- frame converters ------------------------------------------------------------------------
+
+
+def enu_to_ned(v: Array) -> Array:
+    """(x east, y north, z up) -> (north, east, down), row-wise."""
+    v = np.asarray(v, dtype=float)
+    return np.stack([v[..., 1], v[..., 0], -v[..., 2]], axis=-1)
+
+
+def flu_to_frd(v: Array) -> Array:
+    """Body (forward, left, up) -> (forward, right, down), row-wise."""
+    v = np.asarray(v, dtype=float)
+    return np.stack([v[..., 0], -v[..., 1], -v[..., 2]], axis=-1)
+
+
+def quat_from_scalar_last(q: Array) -> Array:
+    """[x, y, z, w] (ROS, SciPy's default) -> [w, x, y, z]."""
+    q = np.asarray(q, dtype=float)
+    return np.concatenate([q[..., 3:4], q[..., 0:3]], axis=-1)
+
+
+_ENU_FROM_NED = quat.from_rotmat(((0.0, 1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, -1.0)))
+_FLU_FROM_FRD = quat.from_rotmat(((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0)))
+
+
+def quat_enu_flu_to_ned_frd(q: Array) -> Array:
+    """Scalar-first q rotating FLU body vectors into ENU -> the one rotating FRD into NED:
+    ``q_ned_frd = q_ned_enu ⊗ q_enu_flu ⊗ q_flu_frd`` (both frame changes are their own inverse)."""
+    q = np.asarray(q, dtype=float)
+    comps = (q[:, 0], q[:, 1], q[:, 2], q[:, 3])
+    out = quat.mul(quat.mul(_ENU_FROM_NED, comps), _FLU_FROM_FRD)  # type: ignore[arg-type]
+    return np.stack([np.broadcast_to(np.asarray(c, dtype=float), q[:, 0].shape) for c in out], axis=-1)
+
+
+# --- the estimate ----------------------------------------------------------------------------
+
+
+def thrust_force_ned(q: Array, thrust_n: Array) -> Array:
+    """``-T R(q) e3`` per sample (N, 3)."""
+    comps = (q[:, 0], q[:, 1], q[:, 2], q[:, 3])
+    z = quat.rotate(comps, E3)  # type: ignore[arg-type]
+    axis = np.stack([np.broadcast_to(np.asarray(c, dtype=float), thrust_n.shape) for c in z], axis=-1)
+    return -thrust_n[:, None] * axis
+
+
+def _specific_force_ned(series: FlightSeries) -> Array:
+    sf = series.specific_force_body_m_s2
+    assert sf is not None
+    q = series.q
+    out = quat.rotate((q[:, 0], q[:, 1], q[:, 2], q[:, 3]), (sf[:, 0], sf[:, 1], sf[:, 2]))  # type: ignore[arg-type]
+    return np.stack([np.asarray(c, dtype=float) for c in out], axis=-1)
+
+
+def _acceleration_ned(series: FlightSeries) -> Array:
+    """r_dd - g e3 (what the accelerometer measures, in NED), from whichever the log has."""
+    if series.specific_force_body_m_s2 is not None:
+        return _specific_force_ned(series)
+    v = series.vel_ned_m_s
+    assert v is not None
+    a = np.gradient(v, series.t_s, axis=0)
+    a[:, 2] -= GRAVITY_M_S2
+    return a
+
+
+def estimate_thrust_scale(series: FlightSeries, mass_kg: float) -> float:
+    """Newtons at normalised thrust 1.0 such that the mean vertical external force is zero:
+    least squares of ``m (r_dd - g e3)_z = k (-u R(q) e3)_z`` over the airborne samples."""
+    unit = thrust_force_ned(series.q, series.thrust)[:, 2]  # per unit of k
+    meas = mass_kg * _acceleration_ned(series)[:, 2]
+    air = series.thrust > 0.05
+    if air.sum() < 10:
+        raise ValueError("too few airborne samples (thrust > 5 %) to estimate the thrust scale")
+    return float(np.dot(meas[air], unit[air]) / np.dot(unit[air], unit[air]))
+
+
+def estimate_force(
+    series: FlightSeries,
+    mass_kg: float,
+    bandwidth_rad_s: float = 5.0,
+    thrust_scale_n: float | None = None,
+    method: str = "auto",
+    motor_time_constant_s: float = 0.0,
+) -> ForceEstimate:
+    """The external force (NED, N) over the flight.
+
+    ``method``: 'accelerometer' (ForceObserver, (30)), 'velocity' (its momentum form, which
+    needs no differentiation), or 'auto' (the accelerometer if logged). ``bandwidth_rad_s`` is
+    the observer's Gamma: the estimate is the true force through a first-order low-pass of it.
+    ``motor_time_constant_s``: when the log holds motor *commands*, the first-order lag through
+    which the rotors follow them (PX4 SIH: SIH_T_TAU), so that the force is the one produced.
+    """
+    if method == "auto":
+        method = "accelerometer" if series.specific_force_body_m_s2 is not None else "velocity"
+    if method == "accelerometer" and series.specific_force_body_m_s2 is None:
+        raise ValueError("the log has no accelerometer; use method='velocity'")
+    if method == "velocity" and series.vel_ned_m_s is None:
+        raise ValueError("the log has no velocity; use method='accelerometer'")
+    if method not in ("accelerometer", "velocity"):
+        raise ValueError(f"unknown method {method!r}")
+    estimated = False
+    if series.thrust_is_newtons:
+        scale, thrust_n = None, series.thrust
+    else:
+        scale = thrust_scale_n
+        if scale is None:
+            scale, estimated = estimate_thrust_scale(series, mass_kg), True
+        thrust_n = series.thrust * scale
+    t = series.t_s
+    if motor_time_constant_s > 0.0:  # a log of commands: the rotors reach them through their lag
+        lagged = np.empty_like(thrust_n)
+        lagged[0] = thrust_n[0]
+        for k in range(1, len(t)):
+            a = 1.0 - math.exp(-(t[k] - t[k - 1]) / motor_time_constant_s)
+            lagged[k] = lagged[k - 1] + a * (thrust_n[k - 1] - lagged[k - 1])
+        thrust_n = lagged
+    force = thrust_force_ned(series.q, thrust_n)
+    out = np.zeros((len(t), 3))
+    gains = (bandwidth_rad_s,) * 3
+    if method == "accelerometer":
+        sf = _specific_force_ned(series)
+        obs = ForceObserver(mass_kg, gains)
+        for k in range(1, len(t)):
+            # the acceleration over step k-1 -> k was produced by the force of sample k-1
+            out[k] = obs.update(tuple(sf[k]), tuple(force[k - 1]), float(t[k] - t[k - 1]))  # type: ignore[arg-type]
+    else:
+        v = series.vel_ned_m_s
+        assert v is not None
+        mom = MomentumObserver(mass_kg, gains)
+        g = (0.0, 0.0, GRAVITY_M_S2)
+        mom.update(tuple(v[0]), tuple(force[0]), g, 1.0)  # type: ignore[arg-type]
+        for k in range(1, len(t)):
+            out[k] = mom.update(tuple(v[k]), tuple(force[k - 1]), g, float(t[k] - t[k - 1]))  # type: ignore[arg-type]
+    return ForceEstimate(t, out, scale, estimated, method, series.truth_force_ned_n)
+
+
+def write_csv(est: ForceEstimate, path: str | Path) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        head = ["t_s", "force_north_n", "force_east_n", "force_down_n"]
+        if est.truth_force_ned_n is not None:
+            head += ["truth_north_n", "truth_east_n", "truth_down_n"]
+        w.writerow(head)
+        for k in range(len(est.t_s)):
+            row = [f"{est.t_s[k]:.4f}", *(f"{x:.4f}" for x in est.force_ned_n[k])]
+            if est.truth_force_ned_n is not None:
+                row += [f"{x:.4f}" for x in est.truth_force_ned_n[k]]
+            w.writerow(row)
+
+
+def plot(est: ForceEstimate, path: str | Path, title: str = "") -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for i, (ax, name) in enumerate(zip(axes, ("north", "east", "down"))):
+        ax.plot(est.t_s, est.force_ned_n[:, i], lw=1.0, label="estimate")
+        if est.truth_force_ned_n is not None:
+            ax.plot(est.t_s, est.truth_force_ned_n[:, i], "k--", lw=0.8, label="truth")
+        ax.set_ylabel(f"{name} [N]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right")
+    axes[-1].set_xlabel("t [s]")
+    scale = "" if est.thrust_scale_n is None else (
+        f", thrust scale {est.thrust_scale_n:.2f} N{' (estimated)' if est.thrust_scale_estimated else ''}")
+    fig.suptitle(f"{title}\nexternal force ({est.method}{scale})" if title else f"external force ({est.method}{scale})")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def rms(x: Sequence[float] | Array) -> float:
+    a = np.asarray(x, dtype=float)
+    return float(math.sqrt(np.mean(a * a))) if a.size else math.nan
