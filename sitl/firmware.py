@@ -39,7 +39,8 @@ def find_px4() -> tuple[Path | None, str]:
     build = Path(env).expanduser() if env else autopilots_root() / "px4/PX4-Autopilot/build/px4_sitl_default"
     where = "PX4_SITL_BUILD" if env else f"the default location {build}"
     if not (build / "bin" / "px4").is_file():
-        return None, f"no PX4 SITL build: set PX4_SITL_BUILD to a px4_sitl_default build directory ({where} has no bin/px4)"
+        return None, (f"no PX4 SITL build: set PX4_SITL_BUILD to a px4_sitl_default build directory "
+                      f"({where} has no bin/px4)")
     if not (build / "etc" / "init.d-posix" / "rcS").is_file():
         return None, f"{build} has no etc/init.d-posix/rcS: not a PX4 SITL build"
     return build, ""

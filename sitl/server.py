@@ -255,7 +255,8 @@ class MavlinkServer:
         self.signing_rejections[f"{reason} {kind}"] += 1
         if reason not in self._signing_reported:
             self._signing_reported.add(reason)
-            self.say(Severity.WARNING, f"Dropped {reason} {kind} from {msg.get_srcSystem()}")
+            # the reason and the sender first: a STATUSTEXT holds 50 characters
+            self.say(Severity.WARNING, f"Dropped {reason} from {msg.get_srcSystem()}: {kind}")
 
     def _note_peer(self, addr: tuple[str, int]) -> None:
         now = time.monotonic()

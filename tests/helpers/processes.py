@@ -83,8 +83,9 @@ def free_udp_port() -> int:
 class SitlProcess:
     """``python -m sitl`` in its own process; :meth:`stop` returns its final report."""
 
-    def __init__(self, *args: str, speedup: float = 2.0, env: dict[str, str] | None = None) -> None:
-        self.port = free_udp_port()
+    def __init__(self, *args: str, speedup: float = 2.0, env: dict[str, str] | None = None,
+                 port: int | None = None) -> None:
+        self.port = port or free_udp_port()
         self.speedup = speedup
         cmd = [sys.executable, "-m", "sitl", "--listen", f"127.0.0.1:{self.port}", "--speedup", str(speedup), *args]
         self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
