@@ -94,7 +94,10 @@ async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) ->
               "signing_rejections": dict(server.signing_rejections),
               "mode": server.ap.mode.name, "armed": server.ap.armed, "events": list(server.ap.events),
               "loop_lateness_ms": server.lateness_ms(), "setpoint_age_ms": server.setpoint_age_ms(),
-              "longest_wait_ms": round(server.longest_wait_s * 1e3, 1)}
+              "longest_wait_ms": round(server.longest_wait_s * 1e3, 1), "pace": server.pace(),
+              "peers": server.peers.summary(),
+              "peer_table": {"added": server.peers.added, "evicted": server.peers.evicted,
+                             "refused": server.peers.refused, "expired": server.peers.expired}}
     print(f"sitl: stopped {json.dumps(report)}", flush=True)
 
 
