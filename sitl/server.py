@@ -14,7 +14,8 @@ HEARTBEAT-rate streams and parameter changes go to all); a flood from one addres
 unparsed beyond its budget; the controller's address is never evicted from the peer table.
 
 Incoming wire messages become :class:`~sitl.autopilot.Autopilot` calls here; outgoing state
-becomes messages in :mod:`sitl.telemetry`.
+becomes messages in :mod:`sitl.telemetry`. Each plant step runs under :class:`~sitl.guard.StepGuard`:
+a numerical fault or a loss of control ends in a defined failsafe, never in the loop's death.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
 
 from .autopilot import Autopilot, MavResult, Severity
+from .guard import StepGuard
 from .parameters import ParamTable, build_parameters
 from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
 from .percentiles import percentiles_ms
@@ -133,6 +135,8 @@ class MavlinkServer:
         autopilot = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA if ap.ardupilot else mavlink.MAV_AUTOPILOT_PX4
         self.telemetry = Telemetry(ap, self.mav, cfg.origin, autopilot)
         self.params: ParamTable = build_parameters(ap)
+        self.guard = StepGuard(ap)
+        """steps the autopilot: a numerical fault or a loss of control ends in a defined failsafe"""
         self.stats: Counter[str] = Counter()
         self.rejections: Counter[str] = Counter()
         self.signing_rejections: Counter[str] = Counter()
@@ -675,8 +679,7 @@ class MavlinkServer:
                     target = ap.t + dt
                 steps = 0
                 while ap.t + 0.5 * dt <= target:
-                    ap.step()
-                    self._telemetry_tick()
+                    self.step()
                     steps += 1
                     if self._setpoint_late():
                         break  # catching up, too: never more than the wait ahead of the companion
@@ -718,6 +721,17 @@ class MavlinkServer:
                 "idle_fraction": round(self.idle_s / wall, 3) if wall > 0 else 0.0,
                 "skipped_s": round(self.stats.get("skipped_ms", 0) / 1000.0, 3)}
 
+
+    def step(self) -> None:
+        """One plant step and the telemetry due; whatever goes wrong, the loop goes on (a fault in
+        the step is the guard's; one in building telemetry is counted)."""
+        self.guard.step()
+        try:
+            self._telemetry_tick()
+            if self.ap.messages:
+                self._drain_messages()
+        except Exception:
+            self.stats["telemetry_errors"] += 1
 
     def _lockstep_active(self) -> bool:
         ap = self.ap
