@@ -313,6 +313,8 @@ class Autopilot:
         return CommandResult(result, reason)
 
     def _arm_disarm(self, arm: float, force: float) -> CommandResult:
+        if arm == 1.0 and self.terminated:
+            return self._deny(f"Arming denied: flight terminated (restart): {self.terminated}")
         if arm == 1.0 and self.vehicle.imu_failed:
             return self._deny(f"Arming denied: IMU failed ({self.vehicle.imu_failed})")
         if arm == 1.0:
@@ -341,6 +343,21 @@ class Autopilot:
             self._disarm("Disarmed" if self.landed else "Disarmed in the air (forced)")
             return CommandResult(MavResult.ACCEPTED)
         return self._deny(f"Arm/disarm: invalid param1 {arm!r}")
+
+    terminated: str | None = None
+    """why the flight was terminated (latched: arming is refused until restart)"""
+
+    def terminate(self, reason: str) -> None:
+        """Flight termination, PX4's answer to a failure it cannot fly through (its failure
+        detector) and ours to a numerical fault (sitl.guard): motors off where it is, disarmed,
+        the reason latched."""
+        self.terminated = reason
+        self._say(Severity.CRITICAL, f"{reason}: motors off")
+        self.armed = self.vehicle.motors_on = False
+        self.failsafe = None
+        if self.mode in (Mode.LAND, Mode.TAKEOFF, Mode.RTL, Mode.OFFBOARD):
+            self.mode = Mode.HOLD
+        self.setpoint = self._idle_setpoint()
 
     def _disarm(self, text: str) -> None:
         self.armed = False

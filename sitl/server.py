@@ -8,8 +8,14 @@ Datagrams are handled between steps as they arrive: each is parsed on its own (a
 packet cannot swallow the next one), every message is checked for its target, and anything
 malformed, oversized, mis-addressed or out of range is dropped and counted — never raised.
 
+Clients do not interfere (:mod:`sitl.peers`): each has its own stream rates, its own paced
+parameter list and its own request budget; answers go to the client that asked (STATUSTEXT,
+HEARTBEAT-rate streams and parameter changes go to all); a flood from one address is dropped
+unparsed beyond its budget; the controller's address is never evicted from the peer table.
+
 Incoming wire messages become :class:`~sitl.autopilot.Autopilot` calls here; outgoing state
-becomes messages in :mod:`sitl.telemetry`.
+becomes messages in :mod:`sitl.telemetry`. Each plant step runs under :class:`~sitl.guard.StepGuard`:
+a numerical fault or a loss of control ends in a defined failsafe, never in the loop's death.
 """
 
 from __future__ import annotations
@@ -32,18 +38,41 @@ from companion.mavlink.wire import new_parser, parse_datagram
 
 from .autopilot import Autopilot, MavResult, Severity
 from .events import catalogue, event_id
+from .guard import StepGuard
 from .parameters import ParamTable, build_parameters
+from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
 from .percentiles import percentiles_ms
 from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
 
-__all__ = ["ServerConfig", "MavlinkServer"]
+__all__ = ["ServerConfig", "MavlinkServer", "MAX_PEERS"]
 
 MAX_DATAGRAM = 4096
-MAX_PEERS = 16
 MAX_REASONS = 64
 """distinct rejection reasons kept by name; the rest are counted as "other" (a fuzzer or an
 attacker must not grow the vehicle's memory with made-up parameter names or command ids)"""
-PEER_TIMEOUT_S = 30.0
+PARAMS_PER_STEP = 2
+"""parameter values sent to one client listing them, per plant step (a repeated request restarts
+nothing and adds nothing)"""
+PARAM_VALUES_PER_S = 200.0
+"""parameter values sent to all listing clients together, per wall second (their lists take turns;
+one list of 45 takes 0.23 s): the cost of answering lists is bounded in the CPU time it takes,
+whatever the speed-up and however many clients ask"""
+MAX_STREAM_HZ = 250.0
+"""no stream faster than this (simulated Hz; a faster SET_MESSAGE_INTERVAL is clamped to it)"""
+NEWCOMER_STREAMS_PER_SIM_S = 400.0
+"""stream messages per simulated second shared by all peers that are not protected (sitl.peers:
+not configured, not the controller, fewer than 3 datagrams or silent for 5 s); the protected get
+all of theirs. A churn of addresses, each a peer with the default streams (380/s), would otherwise
+cost the vehicle one send per message per address"""
+MAX_PEER_STREAMS_HZ = 600.0
+"""the most messages per simulated second one client's streams may add up to (the defaults: 380);
+a SET_MESSAGE_INTERVAL beyond it is denied"""
+DATAGRAMS_PER_SIM_S = 200.0
+"""the datagram budget of one source address, per simulated second of the speed-up (a companion
+sends about 110: setpoints at 100 Hz and a heartbeat); the controller's address is exempt"""
+REQUESTS = frozenset({"COMMAND_LONG", "COMMAND_INT", "PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET",
+                      "PING", "TIMESYNC", "REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST"})
+"""messages that cost an answer: each client's are limited (sitl.peers.REQUESTS_PER_S)"""
 
 # commands answered by the server itself (the rest go to the autopilot)
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
@@ -112,6 +141,8 @@ class MavlinkServer:
         autopilot = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA if ap.ardupilot else mavlink.MAV_AUTOPILOT_PX4
         self.telemetry = Telemetry(ap, self.mav, cfg.origin, autopilot)
         self.params: ParamTable = build_parameters(ap)
+        self.guard = StepGuard(ap)
+        """steps the autopilot: a numerical fault or a loss of control ends in a defined failsafe"""
         self.stats: Counter[str] = Counter()
         self.rejections: Counter[str] = Counter()
         self.signing_rejections: Counter[str] = Counter()
@@ -121,7 +152,21 @@ class MavlinkServer:
             enable_signing(self.mav, cfg.signing_key)
             self.signature_check = SignatureCheck(cfg.signing_key, allow_unsigned=UNSIGNED_ALLOWED)
         self._signing_reported: set[str] = set()
-        self.peers: dict[tuple[str, int], float] = {p: math.inf for p in cfg.peers}
+        # ArduCopter sends only HEARTBEAT (and STATUSTEXT) until a client asks for streams
+        rates = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: 1.0} if ap.ardupilot else cfg.rates_hz
+        self.peers = PeerTable({m: 1.0 / hz for m, hz in rates.items() if hz > 0}, cfg.peers)
+        """who gets telemetry, each at its own rates (sitl.peers)"""
+        self.inflow = InflowGuard(DATAGRAMS_PER_SIM_S * max(cfg.speedup, 1.0), DATAGRAMS_PER_SIM_S)
+        self._non_peer_requests = Peer(("", 0), {}, {}).requests
+        """one request budget shared by every address the full peer table refused"""
+        self._source: Address | None = None
+        """the address of the datagram being handled (answers go there)"""
+        self._peer: Peer | None = None
+        """its peer (None: not in the table)"""
+        self._param_queue: dict[Address, None] = {}
+        """peers with a parameter list in progress, in turn order"""
+        self._param_budget = Bucket(PARAM_VALUES_PER_S, 2.0 * PARAMS_PER_STEP)
+        self._newcomer_streams = Bucket(NEWCOMER_STREAMS_PER_SIM_S * cfg.speedup, 100.0)
         self.transport: UdpEndpoint | None = None
         self.step_lateness_s: deque[float] = deque(maxlen=100_000)
         """wall-clock lateness of the latest loop passes, for the latency benchmark"""
@@ -129,10 +174,6 @@ class MavlinkServer:
         """vehicle seconds from a setpoint's telemetry stamp to its arrival, the latest ones"""
         self.setpoint_age_max_s = 0.0
         """the same, the largest since start"""
-        # ArduCopter sends only HEARTBEAT (and STATUSTEXT) until a client asks for streams
-        rates = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: 1.0} if ap.ardupilot else cfg.rates_hz
-        self._intervals: dict[int, float] = {m: 1.0 / hz for m, hz in rates.items() if hz > 0}
-        self._due: dict[int, float] = {m: 0.0 for m in self._intervals}
         self._next_due = 0.0
         self._last_warning: dict[str, float] = {}
         self._acted_on_t = -math.inf
@@ -164,11 +205,30 @@ class MavlinkServer:
     # --- sending -------------------------------------------------------------------------
 
     def send(self, msg: mavlink.MAVLink_message) -> None:
-        if self.transport is None or not self.peers:
+        """To every peer (STATUSTEXT, parameter changes)."""
+        if self.transport is None or not len(self.peers):
             return
         buf = msg.pack(self.mav)
-        for addr in self.peers:
-            self.transport.sendto(buf, addr)
+        for peer in self.peers:
+            self.transport.sendto(buf, peer.addr)
+        self.stats["sent"] += 1
+
+    def reply(self, msg: mavlink.MAVLink_message) -> None:
+        """To the client whose request is being handled (to every peer if none is)."""
+        if self._source is None:
+            self.send(msg)
+            return
+        if self.transport is None:
+            return
+        self.transport.sendto(msg.pack(self.mav), self._source)
+        self.stats["sent"] += 1
+
+    def _send_to(self, peers: list[Peer], msg: mavlink.MAVLink_message) -> None:
+        if self.transport is None or not peers:
+            return
+        buf = msg.pack(self.mav)
+        for peer in peers:
+            self.transport.sendto(buf, peer.addr)
         self.stats["sent"] += 1
 
     def say(self, severity: int, text: str) -> None:
@@ -189,8 +249,8 @@ class MavlinkServer:
     def _send_raw(self, frame: bytes) -> None:
         if self.transport is None:
             return
-        for addr in self.peers:
-            self.transport.sendto(frame, addr)
+        for peer in self.peers:
+            self.transport.sendto(frame, peer.addr)
         self.stats["sent"] += 1
 
     def _file_transfer(self, msg: Any) -> None:
@@ -212,7 +272,7 @@ class MavlinkServer:
             reply = ftp.encode(req.seq + 1, req.session, ftp.ACK)
         else:
             reply = ftp.encode(req.seq + 1, req.session, ftp.NAK, 0, bytes([ftp.ERR_FAIL]))
-        self.send(self.mav.file_transfer_protocol_encode(0, msg.get_srcSystem(), msg.get_srcComponent(),
+        self.reply(self.mav.file_transfer_protocol_encode(0, msg.get_srcSystem(), msg.get_srcComponent(),
                                                          list(reply)))
 
     def _warn_once(self, key: str, text: str, every_s: float = 5.0) -> None:
@@ -224,30 +284,54 @@ class MavlinkServer:
             self.say(Severity.WARNING, text)
 
     def _telemetry_tick(self) -> None:
+        """Each peer's due streams; a message due for several peers at once is encoded and packed
+        once (streams of one rate share a grid of simulated time)."""
         t = self.ap.t
-        if t + 1e-9 < self._next_due:
+        if self._param_queue:
+            self._send_param_lists()
+        if t + 1e-9 < self._next_due or self.transport is None:
             return
         enc = self.telemetry.encoders
-        for msg_id, due in self._due.items():
-            if t + 1e-9 >= due:
-                msg = enc[msg_id]()
-                if msg is not None:  # None: nothing valid to say now (e.g. no position)
-                    self.send(msg)
-                    if msg_id == mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION:
-                        self._state_sent_ms = self.telemetry.time_boot_ms
-                interval = self._intervals[msg_id]
-                self._due[msg_id] = due + interval if t - due < interval else t + interval
-        self._next_due = min(self._due.values(), default=math.inf)
+        packed: dict[int, bytes | None] = {}
+        attitude = mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION
+        next_due = math.inf
+        sendto = self.transport.sendto
+        now = time.monotonic()
+        table = self.peers
+        for peer in table:
+            if t + 1e-9 >= peer.next_due:
+                shared = not table.protected(peer, now)
+                for msg_id, due in list(peer.due.items()):
+                    if t + 1e-9 < due:
+                        continue
+                    if shared and not self._newcomer_streams.take(now):
+                        # the newcomers' share is spent: this one waits 0.1 s, then gets one of each
+                        self.stats["streams_shed"] += 1
+                        peer.next_due = t + 0.1
+                        break
+                    if msg_id in packed:
+                        buf = packed[msg_id]
+                    else:
+                        msg = enc[msg_id]()
+                        buf = packed[msg_id] = None if msg is None else msg.pack(self.mav)
+                        if buf is not None:
+                            self.stats["sent"] += 1
+                    if buf is not None:  # None: nothing valid to say now (e.g. no position)
+                        sendto(buf, peer.addr)
+                        if msg_id == attitude:
+                            peer.state_sent_ms = self.telemetry.time_boot_ms
+                    peer.sent(msg_id, t)
+                else:
+                    peer.next_due = min(peer.due.values(), default=math.inf)
+            next_due = min(next_due, peer.next_due)
+        self._next_due = next_due
 
-    def set_interval(self, msg_id: int, interval_s: float | None) -> None:
-        """Stream ``msg_id`` every ``interval_s`` simulated seconds (None: stop it)."""
-        if interval_s is None:
-            self._intervals.pop(msg_id, None)
-            self._due.pop(msg_id, None)
-        else:
-            self._intervals[msg_id] = interval_s
-            self._due[msg_id] = self.ap.t
-        self._next_due = min(self._due.values(), default=math.inf)
+    def set_interval(self, msg_id: int, interval_s: float | None, peer: Peer | None = None) -> None:
+        """Stream ``msg_id`` to ``peer`` (None: every peer) every ``interval_s`` simulated seconds
+        (None: stop it)."""
+        for p in [peer] if peer is not None else list(self.peers):
+            p.set_interval(msg_id, interval_s, self.ap.t)
+        self._next_due = min((p.next_due for p in self.peers), default=math.inf)
 
     # --- receiving -----------------------------------------------------------------------
 
@@ -257,10 +341,16 @@ class MavlinkServer:
             self._datagram(data, addr)
         except Exception:
             self.stats["internal_errors"] += 1
+        finally:
+            self._source = self._peer = None
 
     def _datagram(self, data: bytes, addr: tuple[str, int]) -> None:
         st = self.stats
         st["datagrams"] += 1
+        now = time.monotonic()
+        if addr != self.peers.controller and not self.inflow.allow(addr, now):
+            st["flood_dropped"] += 1  # beyond this address's budget: not even parsed
+            return
         if len(data) > MAX_DATAGRAM:
             st["oversized"] += 1
             return
@@ -271,6 +361,7 @@ class MavlinkServer:
             st["truncated"] += 1
         good = False
         check = self.signature_check
+        self._source = addr
         for msg in parsed.messages:
             kind = msg.get_type()
             st["messages"] += 1
@@ -281,7 +372,17 @@ class MavlinkServer:
                     continue
                 if not is_signed(msg):
                     continue  # allowed unsigned: no effect, and no telemetry for its sender
-            good = True
+            if not good:  # the first valid message of the datagram: its sender is a client
+                good = True
+                self._peer = self.peers.note(addr, now, self.ap.t)
+                self._next_due = min(self._next_due, self._peer.next_due) if self._peer else self._next_due
+            if kind in REQUESTS:
+                budget = self._peer.requests if self._peer is not None else self._non_peer_requests
+                if not budget.take(now):
+                    st["rate_limited"] += 1
+                    self._warn_once(f"rate limit {msg.get_srcSystem()}",
+                                    f"Requests from {msg.get_srcSystem()} over {REQUESTS_PER_S:g}/s: dropped")
+                    continue
             if kind in FORWARDED:
                 self._forward(bytes(msg.get_msgbuf()), addr)
                 continue
@@ -292,8 +393,6 @@ class MavlinkServer:
                 handler(msg)
             except Exception:  # a handler bug or a field we could not use: drop, count, go on
                 st["handler_errors"] += 1
-        if good:
-            self._note_peer(addr)
         self._drain_messages()
 
     def _forward(self, frame: bytes, addr: tuple[str, int]) -> None:
@@ -312,8 +411,8 @@ class MavlinkServer:
         if self.transport is None:
             return
         for peer in self.peers:
-            if peer != addr:
-                self.transport.sendto(frame, peer)
+            if peer.addr != addr:
+                self.transport.sendto(frame, peer.addr)
         self.stats["forwarded"] += 1
 
     def _drop_unauthentic(self, msg: Any, kind: str, reason: str) -> None:
@@ -323,22 +422,13 @@ class MavlinkServer:
         self.signing_rejections[f"{reason} {kind}"] += 1
         if reason not in self._signing_reported:
             self._signing_reported.add(reason)
-            self.say(Severity.WARNING, f"Dropped {reason} {kind} from {msg.get_srcSystem()}")
-
-    def _note_peer(self, addr: tuple[str, int]) -> None:
-        now = time.monotonic()
-        if addr not in self.peers and len(self.peers) >= MAX_PEERS:
-            learned = [(t, a) for a, t in self.peers.items() if t != math.inf]
-            if learned:
-                self.peers.pop(min(learned)[1])
-        if self.peers.get(addr) != math.inf:
-            self.peers[addr] = now
+            # the reason and the sender first: a STATUSTEXT holds 50 characters
+            self.say(Severity.WARNING, f"Dropped {reason} from {msg.get_srcSystem()}: {kind}")
 
     def _expire_peers(self) -> None:
-        now = time.monotonic()
-        for addr, t in list(self.peers.items()):
-            if t != math.inf and now - t > PEER_TIMEOUT_S:
-                del self.peers[addr]
+        self.peers.expire(time.monotonic())
+        for addr in [a for a in self._param_queue if a not in self.peers]:
+            del self._param_queue[addr]
 
     def _for_us(self, msg: Any, comp_field: str = "target_component") -> bool:
         ok = msg.target_system in (0, self.config.sysid) and getattr(msg, comp_field, 0) in (0, self.config.compid)
@@ -354,7 +444,7 @@ class MavlinkServer:
     # --- commands --------------------------------------------------------------------------
 
     def _ack(self, msg: Any, command: int, result: int) -> None:
-        self.send(self.mav.command_ack_encode(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+        self.reply(self.mav.command_ack_encode(command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
 
     def _command_long(self, msg: Any) -> None:
         if not self._for_us(msg):
@@ -391,17 +481,34 @@ class MavlinkServer:
         if mid not in self.telemetry.encoders or mid == mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
             self._reject(f"message interval: cannot stream message {mid}")
             return MavResult.DENIED
+        peer = self._requesting_peer()
+        if peer is None:
+            self._reject("message interval: no room for another client")
+            return MavResult.TEMPORARILY_REJECTED
         if interval_us == -1:
-            self.set_interval(mid, None)
+            self.set_interval(mid, None, peer)
         elif interval_us == 0:
             hz = DEFAULT_RATES_HZ.get(mid, 0.0)
-            self.set_interval(mid, 1.0 / hz if hz > 0 else None)
+            self.set_interval(mid, 1.0 / hz if hz > 0 else None, peer)
         elif interval_us > 0:
-            self.set_interval(mid, max(interval_us * 1e-6, self.ap.dt))
+            interval = max(interval_us * 1e-6, 1.0 / MAX_STREAM_HZ, self.ap.dt)
+            others = sum(1.0 / i for m, i in peer.intervals.items() if m != mid)
+            if others + 1.0 / interval > MAX_PEER_STREAMS_HZ:
+                self._reject(f"message interval: over {MAX_PEER_STREAMS_HZ:g} messages/s for one client")
+                return MavResult.DENIED
+            self.set_interval(mid, interval, peer)
         else:
             self._reject("message interval: negative interval")
             return MavResult.DENIED
         return MavResult.ACCEPTED
+
+    def _requesting_peer(self) -> Peer | None:
+        """The peer whose request is being handled; outside a datagram (a test calling a handler),
+        the only peer if there is exactly one."""
+        if self._source is not None:
+            return self._peer
+        peers = list(self.peers)
+        return peers[0] if len(peers) == 1 else None
 
     def _request_message(self, msg: Any, command: int, msg_id: float) -> None:
         """ACK, then the requested message (the order PX4 uses)."""
@@ -414,7 +521,7 @@ class MavlinkServer:
             self._ack(msg, command, MavResult.TEMPORARILY_REJECTED)
             return
         self._ack(msg, command, MavResult.ACCEPTED)
-        self.send(reply)
+        self.reply(reply)
 
     # --- setpoints -------------------------------------------------------------------------
 
@@ -433,6 +540,8 @@ class MavlinkServer:
         from: its age here is the whole loop's latency (PX4 ignores the field; 0 = unstamped), and
         what ``wait_for_setpoints_s`` measures (from arrival when unstamped)."""
         age = self.ap.t - time_boot_ms * 1e-3
+        if self._source is not None:
+            self.peers.controller = self._source  # protected from eviction and from the flood budget
         if time_boot_ms and 0.0 <= age < 60.0:
             self.setpoint_age_s.append(age)
             self.setpoint_age_max_s = max(self.setpoint_age_max_s, age)
@@ -458,18 +567,60 @@ class MavlinkServer:
 
     # --- parameters ----------------------------------------------------------------------
 
-    def _param_value(self, index: int) -> None:
+    def _param_value_msg(self, index: int) -> mavlink.MAVLink_message | None:
         p = self.params.at(index)
         if p is None:
-            return
-        self.send(self.mav.param_value_encode(
-            p.name.encode("ascii"), float(p.value), mavlink.MAV_PARAM_TYPE_REAL32, len(self.params), index))
+            return None
+        return self.mav.param_value_encode(
+            p.name.encode("ascii"), float(p.value), mavlink.MAV_PARAM_TYPE_REAL32, len(self.params), index)
+
+    def _param_value(self, index: int, to_all: bool = False) -> None:
+        msg = self._param_value_msg(index)
+        if msg is not None:
+            (self.send if to_all else self.reply)(msg)
 
     def _param_request_list(self, msg: Any) -> None:
+        """The list is sent to the requester a few values per plant step (_send_param_lists); a
+        request while its list is in progress changes nothing."""
         if not self._for_us(msg):
             return
-        for i in range(len(self.params)):
-            self._param_value(i)
+        peer = self._requesting_peer()
+        if peer is None:
+            self._reject("param list: no room for another client")
+            return
+        if peer.param_cursor is None:
+            peer.param_cursor = 0
+            self._param_queue[peer.addr] = None
+            self.stats["param_lists"] += 1
+
+    def _send_param_lists(self) -> None:
+        """This step's share of the parameter lists in progress: up to PARAMS_PER_STEP values to
+        each, as many in all as PARAM_VALUES_PER_S allows, the lists taking turns (the queue
+        rotates)."""
+        bucket = self._param_budget
+        budget = 0
+        while budget < PARAMS_PER_STEP * len(self._param_queue) and bucket.take(time.monotonic()):
+            budget += 1
+        queue = self._param_queue
+        for addr in list(queue):
+            queue.pop(addr)
+            peer = self.peers.get(addr)
+            if peer is None or peer.param_cursor is None:
+                continue
+            if budget <= 0:
+                queue[addr] = None  # its turn comes first next step
+                continue
+            for _ in range(min(PARAMS_PER_STEP, budget)):
+                budget -= 1
+                msg = self._param_value_msg(peer.param_cursor)
+                if msg is not None:
+                    self._send_to([peer], msg)
+                peer.param_cursor += 1
+                if peer.param_cursor >= len(self.params):
+                    peer.param_cursor = None
+                    break
+            if peer.param_cursor is not None:
+                queue[addr] = None  # to the back
 
     def _param_request_read(self, msg: Any) -> None:
         if not self._for_us(msg):
@@ -496,36 +647,41 @@ class MavlinkServer:
         if reason is not None:
             self._reject(f"param set: {reason}")
         if index is not None:
-            self._param_value(index)  # echo the value now in force (the old one if refused)
+            self._param_value(index, to_all=reason is None)  # the value in force (the old one if refused)
 
     # --- small protocols -------------------------------------------------------------------
 
     def _ping(self, msg: Any) -> None:
         if msg.target_system == 0:  # a request: answer it, addressed to the sender
-            self.send(self.mav.ping_encode(msg.time_usec, msg.seq, msg.get_srcSystem(), msg.get_srcComponent()))
+            self.reply(self.mav.ping_encode(msg.time_usec, msg.seq, msg.get_srcSystem(), msg.get_srcComponent()))
 
     def _timesync(self, msg: Any) -> None:
-        """A request (tc1 = 0) is answered with our simulated time in tc1 and the request's ts1.
-        (This dialect's TIMESYNC has no target fields: the answer goes to every peer.)"""
+        """A request (tc1 = 0) is answered with our simulated time in tc1 and the request's ts1, to the
+        requester (this dialect's TIMESYNC has no target fields)."""
         if msg.tc1 == 0:
-            self.send(self.mav.timesync_encode(int(self.ap.t * 1e9), msg.ts1))
+            self.reply(self.mav.timesync_encode(int(self.ap.t * 1e9), msg.ts1))
 
     def _request_data_stream(self, msg: Any) -> None:
+        """Start (the default rates) or stop (all but HEARTBEAT) the requester's streams."""
         if not self._for_us(msg):
             return
+        peer = self._requesting_peer()
+        if peer is None:
+            self._reject("data stream: no room for another client")
+            return
         if msg.start_stop == 0 and msg.req_stream_id == 0:
-            for mid in list(self._intervals):
+            for mid in list(peer.intervals):
                 if mid != mavlink.MAVLINK_MSG_ID_HEARTBEAT:
-                    self.set_interval(mid, None)
+                    self.set_interval(mid, None, peer)
         elif msg.start_stop:
             for mid, hz in DEFAULT_RATES_HZ.items():
-                self.set_interval(mid, 1.0 / hz)
+                self.set_interval(mid, 1.0 / hz, peer)
 
     def _mission_request_list(self, msg: Any) -> None:
         if not self._for_us(msg):
             return
-        self.send(self.mav.mission_count_encode(msg.get_srcSystem(), msg.get_srcComponent(), 0,
-                                                getattr(msg, "mission_type", 0)))
+        self.reply(self.mav.mission_count_encode(msg.get_srcSystem(), msg.get_srcComponent(), 0,
+                                                 getattr(msg, "mission_type", 0)))
 
     def lateness_ms(self) -> dict[str, float]:
         """Percentiles of how late (wall clock) the loop started steps that were due."""
@@ -558,6 +714,7 @@ class MavlinkServer:
         ap, speedup = self.ap, self.config.speedup
         dt = ap.dt
         wall0, sim0 = time.monotonic(), ap.t
+        self._run_wall0, self._run_sim0 = wall0, ap.t
         lateness = self.step_lateness_s
         last_expire = wall0
         try:
@@ -590,8 +747,7 @@ class MavlinkServer:
                     target = ap.t + dt
                 steps = 0
                 while ap.t + 0.5 * dt <= target:
-                    ap.step()
-                    self._telemetry_tick()
+                    self.step()
                     steps += 1
                     if self._setpoint_late():
                         break  # catching up, too: never more than the wait ahead of the companion
@@ -605,12 +761,45 @@ class MavlinkServer:
                 if locked:
                     wall0, sim0 = time.monotonic() - dt / speedup, ap.t  # paced by setpoints, not the wall
                 next_wall = wall0 + (ap.t + dt - sim0) / speedup
-                await asyncio.sleep(max(0.0, next_wall - time.monotonic()))
+                pause = max(0.0, next_wall - time.monotonic())
+                self.idle_s += pause
+                await asyncio.sleep(pause)
         finally:
+            self.run_wall_s = time.monotonic() - self._run_wall0
+            self.run_sim_s = ap.t - self._run_sim0
             if self.transport is not None:
                 self.transport.close()
                 self.transport = None
 
+    idle_s = 0.0
+    """wall seconds the loop slept between steps because it was ahead of time (its headroom)"""
+    run_wall_s = 0.0
+    run_sim_s = 0.0
+    _run_wall0 = 0.0
+    _run_sim0 = 0.0
+
+    def pace(self) -> dict[str, float]:
+        """How the world kept its speed: simulated and wall seconds of :meth:`run` so far, their
+        ratio against the speed-up asked for, the fraction of wall time spent asleep ahead of
+        time (headroom), and the simulated time skipped after stalls (docs/sitl.md, Time)."""
+        wall = self.run_wall_s or (time.monotonic() - self._run_wall0 if self._run_wall0 else 0.0)
+        sim = self.run_sim_s or (self.ap.t - self._run_sim0)
+        return {"wall_s": round(wall, 3), "sim_s": round(sim, 3),
+                "speedup": round(sim / wall, 3) if wall > 0 else 0.0, "speedup_asked": self.config.speedup,
+                "idle_fraction": round(self.idle_s / wall, 3) if wall > 0 else 0.0,
+                "skipped_s": round(self.stats.get("skipped_ms", 0) / 1000.0, 3)}
+
+
+    def step(self) -> None:
+        """One plant step and the telemetry due; whatever goes wrong, the loop goes on (a fault in
+        the step is the guard's; one in building telemetry is counted)."""
+        self.guard.step()
+        try:
+            self._telemetry_tick()
+            if self.ap.messages:
+                self._drain_messages()
+        except Exception:
+            self.stats["telemetry_errors"] += 1
 
     def _lockstep_active(self) -> bool:
         ap = self.ap
@@ -659,28 +848,27 @@ class MavlinkServer:
     _wait_checked = 0.0
 
     def _send_state_now(self) -> None:
-        """Lockstep: the state at the stop, now, unless this instant's attitude was already sent."""
+        """Lockstep: the state at the stop, now, to each peer that streams it and has not had this
+        instant's attitude yet."""
         stamp = self.telemetry.time_boot_ms
-        if stamp == self._state_sent_ms:
-            return
-        self._state_sent_ms = stamp
-        enc = self.telemetry.encoders
-        for msg_id in (mavlink.MAVLINK_MSG_ID_HIGHRES_IMU, mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION):
-            if msg_id in self._intervals:
-                msg = enc[msg_id]()
-                if msg is not None:
-                    self.send(msg)
-
-    _state_sent_ms = -1
+        peers = [p for p in self.peers if p.state_sent_ms != stamp]
+        for p in peers:
+            p.state_sent_ms = stamp
+        self._send_streamed(peers, (mavlink.MAVLINK_MSG_ID_HIGHRES_IMU, mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION))
 
     def _repeat_state(self) -> None:
         """While waiting: the newest attitude and position again, same stamp (the clock stood still)."""
+        self._send_streamed(list(self.peers),
+                            (mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED))
+
+    def _send_streamed(self, peers: list[Peer], msg_ids: tuple[int, ...]) -> None:
         enc = self.telemetry.encoders
-        for msg_id in (mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED):
-            if msg_id in self._intervals:
+        for msg_id in msg_ids:
+            to = [p for p in peers if msg_id in p.intervals]
+            if to:
                 msg = enc[msg_id]()
                 if msg is not None:
-                    self.send(msg)
+                    self._send_to(to, msg)
 
 
 def _bounded_key(table: dict[str, Any], key: str) -> str:

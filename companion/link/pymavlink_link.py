@@ -34,7 +34,7 @@ from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
 from companion.mavlink import ftp
 from companion.mavlink.events import MSG_ID_EVENT, EventCatalogue, parse_event
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, decode_value, encode_value, param_name
-from companion.mavlink.signing import SignatureCheck, enable_signing, fingerprint
+from companion.mavlink.signing import SignatureCheck, describe_rejections, enable_signing, fingerprint
 from companion.mavlink.stream import SerialEndpoint, TcpEndpoint
 from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
@@ -353,9 +353,13 @@ class PymavlinkLink(VehicleLink):
         except TimeoutError:
             beats = {k.rsplit(" ", 1)[0]: n for k, n in self.signing_rejections.items() if k.endswith(" HEARTBEAT")}
             if beats:
-                why = ", ".join(f"{n} {reason}" for reason, n in sorted(beats.items()))
-                raise LinkError(f"heartbeats from {where} were not signed with our key ({why}): the vehicle signs "
-                                f"with another key, or not at all") from None
+                assert self.signature_check is not None
+                hint = {"wrong key": f": does the vehicle have our key (fingerprint "
+                                     f"{fingerprint(self.signature_check.key)})?",
+                        "unsigned": ": the vehicle does not sign (give it the key, or drop ours)",
+                        "stale timestamp": ": compare both machines' clocks (UTC)",
+                        "future timestamp": ": compare both machines' clocks (UTC)"}.get(max(beats, key=beats.get), "")
+                raise LinkError(f"heartbeats from {where} refused: {describe_rejections(beats)}{hint}") from None
             if self.signature_check is None:
                 hint = ("; if the vehicle uses MAVLink signing, give its key "
                         "(--signing-key-file or $MAVLINK_SIGNING_KEY)")

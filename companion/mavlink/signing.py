@@ -4,11 +4,23 @@ A signed frame carries ``link_id`` (1 byte), a 48-bit timestamp in 10 µs units 
 2015-01-01 00:00 UTC, and the first 6 bytes of SHA-256(key ‖ header ‖ payload ‖ CRC ‖ link_id ‖
 timestamp). A frame is accepted when its signature is right and its timestamp is newer than the
 last one accepted from the same (link_id, sysid, compid) stream; a stream not seen before must be
-no more than one minute behind the newest timestamp we know (the MAVLink signing rules).
+no more than one minute behind our clock (the MAVLink signing rules), and no frame may be more
+than one minute ahead of it.
+
+Timestamps follow the clock, as the MAVLink spec defines them. pymavlink sets a sender's timestamp
+once (``setup_signing``) and then adds one unit (10 µs) per frame sent, so a sender's timestamps
+fall behind the clock by almost a second per second: a vehicle sending 500 frames/s is 60 s
+behind after about 60 s, and every receiver started after that refuses it as a stale new stream.
+:func:`enable_signing` installs :class:`ClockSigning`, which signs each frame with
+``max(clock, previous + 1)``.
 
 Checking is ours, not pymavlink's: pymavlink records a stream's timestamp before it compares the
 signature, so one forged frame with a far-future timestamp would lock the real sender out until
-restart. Here the signature is checked first and only a genuine frame moves a stream forward.
+restart, and it compares a new stream with its own outgoing counter (the lagging one above). Here
+the signature is checked first and only a genuine frame moves a stream forward; a new stream is
+compared with our clock, never with another stream's timestamp, so a genuine frame from a sender
+whose clock is far ahead (or a keyed system pushing timestamps ahead) is refused as a future
+timestamp instead of locking out every stream that starts after it.
 
 The key never needs to appear on a command line: it comes from a file (32 raw bytes, 64 hex digits,
 or a passphrase hashed with SHA-256, as MAVProxy's ``signing setup`` does) or from the environment
@@ -23,20 +35,26 @@ import secrets
 import stat
 import struct
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 __all__ = [
     "KEY_ENV", "SigningError", "SignatureCheck", "key_from_text", "read_key_file", "load_key", "fingerprint",
-    "signing_timestamp", "enable_signing", "write_key_file", "is_signed",
+    "signing_timestamp", "enable_signing", "write_key_file", "is_signed", "ClockSigning", "REASONS",
+    "describe_rejections",
 ]
 
 KEY_ENV = "MAVLINK_SIGNING_KEY"
 EPOCH_2015_S = 1420070400
 UNITS_PER_S = 100_000
 NEW_STREAM_WINDOW = 60 * UNITS_PER_S
-"""a stream we have not seen may start at most one minute behind the newest timestamp"""
+"""a stream we have not seen may start at most one minute behind our clock"""
+FUTURE_WINDOW = 60 * UNITS_PER_S
+"""no frame may be more than one minute ahead of our clock (it is refused, and not remembered)"""
 SIGNED_FLAG = 0x01
 SIGNATURE_LEN = 13
 
@@ -111,20 +129,49 @@ def fingerprint(key: bytes) -> str:
     return hashlib.sha256(b"fingerprint:" + key).hexdigest()[:8]
 
 
+def _now() -> float:
+    return time.time()  # looked up at each call (a test may replace time.time)
+
+
 def signing_timestamp(now_s: float | None = None) -> int:
     """Now, in signing units (10 µs since 2015-01-01 00:00 UTC)."""
     t = time.time() if now_s is None else now_s
     return int((t - EPOCH_2015_S) * UNITS_PER_S)
 
 
-def enable_signing(mav: Any, key: bytes, link_id: int = 0) -> None:
-    """Make a pymavlink ``MAVLink`` object sign everything it packs from now on."""
+class ClockSigning(mavlink.MAVLinkSigning):
+    """pymavlink's signing state, with a ``timestamp`` that follows ``clock``.
+
+    pymavlink signs a frame with ``signing.timestamp`` and then adds 1 to it; here reading it gives
+    ``max(clock now, the last value + 1)``, so every frame carries the time it was sent (in signing
+    units) and a link's timestamps still strictly increase (a clock stepped back is ridden out).
+    """
+
+    def __init__(self, clock: Callable[[], float] = _now) -> None:
+        super().__init__()
+        self.clock = clock
+
+    @property  # type: ignore[override]
+    def timestamp(self) -> int:
+        return max(self._next, signing_timestamp(self.clock()))
+
+    @timestamp.setter
+    def timestamp(self, value: int) -> None:
+        self._next = int(value)
+
+    _next = 0
+
+
+def enable_signing(mav: Any, key: bytes, link_id: int = 0, clock: Callable[[], float] = _now) -> None:
+    """Make a pymavlink ``MAVLink`` object sign everything it packs from now on, each frame stamped
+    with ``clock`` (UNIX seconds; a test may pass another clock to play a sender whose clock is off)."""
     if len(key) != 32:
         raise SigningError(f"a signing key is 32 bytes, got {len(key)}")
-    mav.signing.secret_key = key
-    mav.signing.link_id = link_id & 0xFF
-    mav.signing.timestamp = signing_timestamp()
-    mav.signing.sign_outgoing = True
+    signing = ClockSigning(clock)
+    signing.secret_key = key
+    signing.link_id = link_id & 0xFF
+    signing.sign_outgoing = True
+    mav.signing = signing
 
 
 def is_signed(msg: Any) -> bool:
@@ -132,20 +179,41 @@ def is_signed(msg: Any) -> bool:
     return bool(getattr(msg.get_header(), "incompat_flags", 0) & SIGNED_FLAG)
 
 
+REASONS = {
+    "unsigned": "not signed",
+    "wrong key": "signed with another key (or altered on the way)",
+    "replayed": "replayed: a timestamp this stream already used",
+    "stale timestamp": "signed with our key, but timestamped more than 60 s behind our clock "
+                       "(a clock behind ours, or frames recorded earlier)",
+    "future timestamp": "signed with our key, but timestamped more than 60 s ahead of our clock "
+                        "(a clock ahead of ours)",
+}
+"""why :meth:`SignatureCheck.verdict` refuses a frame, and what each reason means"""
+
+
+def describe_rejections(counts: Mapping[str, int]) -> str:
+    """``{reason: frames}`` as one sentence that names each cause, most frequent first."""
+    parts = [f"{n} {REASONS.get(reason, reason)}" for reason, n in Counter(counts).most_common()]
+    return "; ".join(parts)
+
+
 @dataclass
 class SignatureCheck:
-    """Accept a decoded frame only if it is signed with ``key`` and not a replay.
+    """Accept a decoded frame only if it is signed with ``key``, not a replay, and timed within a
+    minute of our clock.
 
     Use it on frames decoded by a parser that has no key (so it hands every frame over);
-    :meth:`verdict` is None for an accepted frame, else the reason it is refused.
+    :meth:`verdict` is None for an accepted frame, else the reason it is refused (a key of
+    :data:`REASONS`).
     """
 
     key: bytes
     allow_unsigned: frozenset[str] = frozenset()
     """message names accepted without a signature (e.g. a radio's RADIO_STATUS)"""
-    newest: int = field(default_factory=signing_timestamp)
-    """newest timestamp known: our own clock, or the newest genuine frame"""
+    clock: Callable[[], float] = _now
+    """our clock (UNIX seconds): new streams and future timestamps are judged against it alone"""
     streams: dict[tuple[int, int, int], int] = field(default_factory=dict)
+    """the newest accepted timestamp of each (link_id, sysid, compid)"""
     max_streams: int = 256
 
     def verdict(self, msg: Any) -> str | None:
@@ -154,21 +222,23 @@ class SignatureCheck:
         if not (is_signed(msg) and buf[:1] == b"\xfd"):
             return None if msg.get_type() in self.allow_unsigned else "unsigned"
         if len(buf) < 12 + SIGNATURE_LEN:
-            return "bad signature"
+            return "wrong key"
         link_id = buf[-13]
         low, high = struct.unpack("<IH", buf[-12:-6])
         timestamp = low | (high << 32)
         if hashlib.sha256(self.key + buf[:-6]).digest()[:6] != buf[-6:]:
-            return "bad signature"
+            return "wrong key"
+        now = signing_timestamp(self.clock())
+        if timestamp > now + FUTURE_WINDOW:
+            return "future timestamp"  # not stored: it must not push this stream (or any other) ahead
         stream = (link_id, header.srcSystem, header.srcComponent)
         last = self.streams.get(stream)
         if last is not None:
             if timestamp <= last:
                 return "replayed"
-        elif timestamp + NEW_STREAM_WINDOW < max(self.newest, signing_timestamp()):
-            return "stale"
+        elif timestamp + NEW_STREAM_WINDOW < now:
+            return "stale timestamp"
         if last is None and len(self.streams) >= self.max_streams:
             self.streams.pop(min(self.streams, key=self.streams.__getitem__))
         self.streams[stream] = timestamp
-        self.newest = max(self.newest, timestamp)
         return None

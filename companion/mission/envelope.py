@@ -90,6 +90,13 @@ ENVELOPE: dict[str, Range] = {
     "gains.boundary_layer_m_s": Range(0.01, 10, "m/s", "boundary layer; it divides the sliding variable, so "
                                       "not 0"),
     "gains.aibc_gamma_per_s": Range(0, 50, "1/s", "AIBC adaptation rate"),
+    "gains.indi_filter_rad_s": Range(1, 100, "rad/s", "INDI low-pass on the measured acceleration and force; it "
+                                     "must stay above the position loop and below the control rate"),
+    "gains.observer_match_delay_s": Range(0, 0.5, "s", "delay of the force fed to the observer, to match a "
+                                          "differentiated acceleration (0: none)"),
+    "gains.observer_match_cutoff_hz": Range(1, 100, "Hz", "low-pass of that force, to match the differentiation's "
+                                            "filters", zero_means="not filtered"),
+    "gains.observer_match_order": Range(1, 4, "", "first-order stages of that low-pass"),
     "gains.integral_limit_m_s2": Range(0, 30, "m/s^2", "anti-windup bound of the integral term (3 g)"),
     "reference.tilt_max_rad": _deg(5, 70, "rad", "thrust direction from vertical"),
     "reference.min_up_force_fraction": Range(0.05, 1, "", "of the weight, always upwards"),

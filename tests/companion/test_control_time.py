@@ -62,7 +62,10 @@ def test_reordered_older_stamps_never_move_the_controller_back():
 
 
 def _controller() -> OffboardController:
-    return OffboardController("ism_do", VehicleParams(), PositionGains(), ReferenceParams(), TrajectoryParams(),
+    # "measured" force: this scripted vehicle follows the reference whatever is commanded, so an
+    # observer of the commanded force would learn that mismatch and this test would measure it
+    gains = PositionGains(force_source="measured")
+    return OffboardController("ism_do", VehicleParams(), gains, ReferenceParams(), TrajectoryParams(),
                               ThrustScaleEstimator(18.5, adapt=False), SetpointGuard(), period_s=PERIOD)
 
 

@@ -63,7 +63,7 @@ def fresh_server() -> MavlinkServer:
         _BASE.append(_flying_autopilot())
     server = MavlinkServer(copy.deepcopy(_BASE[0]), ServerConfig())
     server.transport = _Wire()  # type: ignore[assignment]
-    server.peers[("127.0.0.1", 14550)] = math.inf
+    server.peers.add(("127.0.0.1", 14550), server.ap.t, pinned=True)
     return server
 
 

@@ -90,8 +90,10 @@ class SitlProcess(VehicleProcess):
     """``python -m sitl`` in its own process (companion/vehicle_process.py), started from the
     checkout with the test environment; :meth:`stop` returns its final report."""
 
-    def __init__(self, *args: str, speedup: float = 2.0, env: dict[str, str] | None = None) -> None:
-        super().__init__(*args, speedup=speedup, env=child_env(**(env or {})), cwd=ROOT, own_session=False)
+    def __init__(self, *args: str, speedup: float = 2.0, env: dict[str, str] | None = None,
+                 port: int | None = None) -> None:
+        super().__init__(*args, speedup=speedup, env=child_env(**(env or {})), cwd=ROOT, own_session=False,
+                         port=port or 0)
 
 
 class RelayProcess:

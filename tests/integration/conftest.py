@@ -14,8 +14,9 @@ from helpers.processes import (  # noqa: F401  (re-exported for the tests of thi
 def sitl():
     procs: list[SitlProcess] = []
 
-    def start(*args: str, speedup: float = 2.0, env: dict[str, str] | None = None) -> SitlProcess:
-        p = SitlProcess(*args, speedup=speedup, env=env)
+    def start(*args: str, speedup: float = 2.0, env: dict[str, str] | None = None,
+              port: int | None = None) -> SitlProcess:
+        p = SitlProcess(*args, speedup=speedup, env=env, port=port)
         procs.append(p)
         return p
 
