@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Sequence
 
 from companion.config import ConfigError
+from companion.control.position import POSITION_CONTROLLERS
 from companion.link.url import parse_endpoint
 from companion.mavlink.signing import SigningError, fingerprint, write_key_file
 from companion.mavlink.signing_options import add_signing_options, signing_key
@@ -160,7 +161,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                      help="udp://HOST:PORT (the vehicle listens: the bundled one), udpin://HOST:PORT (the vehicle "
                           "sends first: PX4 SITL, 14540), tcp://HOST:PORT (ArduPilot SITL: 5760), "
                           "serial:///dev/DEVICE:BAUD (a flight controller's TELEM port)")
-    fly.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc", "autopilot"),
+    fly.add_argument("--controller", choices=(*POSITION_CONTROLLERS, "autopilot"),
                      help="position controller; autopilot: the autopilot's own position control flies the same "
                           "reference (SET_POSITION_TARGET_LOCAL_NED), for comparison")
     fly.add_argument("--rate", type=float, help="control rate in vehicle Hz (10..250)")
@@ -190,7 +191,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     demo.add_argument("--out", default="flights")
     demo.add_argument("--speedup", type=float, default=8.0, help="upper bound on the simulated vehicle's speed-up "
                       "(in lockstep it flies as fast as the companion answers, up to this)")
-    demo.add_argument("--controller", choices=("ism_do", "pd_do", "pid", "aibc"), default="ism_do")
+    demo.add_argument("--controller", choices=POSITION_CONTROLLERS, default="ism_do")
     demo.set_defaults(func=_demo)
     est = sub.add_parser("estimate", help="the external force over a logged flight (ULog, tlog or CSV)")
     est.add_argument("log", help=".ulg (PX4), .tlog (MAVLink) or .csv/.csv.gz (with --columns)")

@@ -155,7 +155,16 @@ class AutopilotParams:
     guided_timeout_s: float = 3.0
     """ArduPilot GUID_TIMEOUT: attitude targets older than this are no longer flown; it holds"""
     angle_max_deg: float = 30.0
-    """ArduPilot ANGLE_MAX / 100: the tilt an attitude target is clipped to in GUIDED"""
+    """ArduPilot ATC_ANGLE_MAX [deg] (ANGLE_MAX in cdeg before 4.7): the lean limit of its own modes;
+    GUIDED attitude targets are not clipped to it (seen on ArduCopter SITL)"""
+    rate_ff_enabled: bool = True
+    """ArduPilot ATC_RATE_FF_ENAB: attitude targets are shaped, approached with the time constant
+    ``input_tc_s`` instead of flown as sent (ArduPilot's default; the companion turns it off)"""
+    input_tc_s: float = 0.15
+    """ArduPilot ATC_INPUT_TC: the time constant of that shaping [s]"""
+    angle_boost: bool = True
+    """ArduPilot ATC_ANGLE_BOOST: throttle divided by the cosine of the vehicle's tilt (ArduPilot's
+    default; a companion that already sends the thrust magnitude then climbs in every lean)"""
     position_after_s: float | None = None
     """vehicle seconds after boot before the estimator has an origin (no LOCAL_POSITION_NED, no arming);
     None: the flavour's own (ArduCopter ~40 s, seen on its SITL; PX4 SIH about 1 s)"""
@@ -164,6 +173,13 @@ class AutopilotParams:
     False: descend and land at once (PX4 v1.16 without RC, the default)"""
     guided_thrust_is_throttle: bool = False
     """ArduPilot GUID_OPTIONS bit 3: thrust is throttle (else a climb rate, 0.5 = hold altitude)"""
+
+
+def _angle_boost(q: tuple) -> float:
+    """ArduPilot's throttle boost at the vehicle's tilt: 1 / cos(tilt), the cosine floored at 0.1,
+    fading to 0 past 84 deg (get_throttle_boosted)."""
+    c = math.cos(float(quat.tilt_angle(q)))
+    return min(max(10.0 * c, 0.0), 1.0) / min(max(c, 0.1), 1.0)
 
 
 class CommandResult(NamedTuple):
@@ -678,6 +694,7 @@ class Autopilot:
                     sp = AttitudeSetpoint(quat.integrate(sp.q_d, sp.omega_d_rad_s, age), sp.omega_d_rad_s,
                                           sp.thrust_n)
                 return self._guided_target(sp)
+            self._shaped_q = None
             if self._guided_flying:  # GUID_TIMEOUT: level out and keep the altitude; position is not held
                 self._guided_flying = False
                 self._say(Severity.WARNING, "Guided: attitude target timed out, levelling")
@@ -743,16 +760,37 @@ class Autopilot:
     def _guided_target(self, sp: AttitudeSetpoint) -> AttitudeSetpoint:
         """ArduPilot's handling of an attitude target: thrust is throttle with GUID_OPTIONS bit 3,
         else a climb rate held by a vertical-speed loop. The tilt is *not* limited to ANGLE_MAX
-        (ArduCopter 4.7/4.8 flew 37.6 deg with 30 deg set: tests/autopilots)."""
-        q_d = sp.q_d
+        (ArduCopter 4.7/4.8 flew 37.6 deg with 30 deg set: tests/autopilots). With ATC_RATE_FF_ENAB
+        the target is shaped first; with ATC_ANGLE_BOOST throttle is boosted by the tilt."""
+        q_d, omega_d = sp.q_d, sp.omega_d_rad_s
+        if self.params.rate_ff_enabled:
+            q_d, omega_d = self._shaped(q_d)
+        else:
+            self._shaped_q = None
         thrust_n = sp.thrust_n
+        if self.params.guided_thrust_is_throttle and self.params.angle_boost:
+            boosted = thrust_n * _angle_boost(self.vehicle.estimator.q)
+            thrust_n = min(boosted, self.vehicle.scenario.vehicle.thrust_max_n)
         if not self.params.guided_thrust_is_throttle:
             v_up = -self.vehicle.tracked.vel_ned_m_s[2]
             m = self.vehicle.scenario.vehicle
             cos_tilt = max(math.cos(float(quat.tilt_angle(q_d))), 0.3)
             thrust_n = m.mass_kg * (m.gravity_m_s2 + 2.0 * (self.guided_climb_rate_m_s - v_up)) / cos_tilt
             thrust_n = min(max(thrust_n, 0.0), m.thrust_max_n)
-        return AttitudeSetpoint(q_d, sp.omega_d_rad_s, thrust_n)
+        return AttitudeSetpoint(q_d, omega_d, thrust_n)
+
+    def _shaped(self, q_target: tuple) -> tuple[tuple, Vec3]:
+        """ATC_RATE_FF_ENAB: ArduPilot's attitude command model, to first order: the attitude it
+        flies turns towards the target at (error / ATC_INPUT_TC), starting from the vehicle's own
+        attitude, so a step in the target is reached after a few time constants, not at once."""
+        q = self._shaped_q if self._shaped_q is not None else self.vehicle.estimator.q
+        err = quat.log(quat.relative(q, q_target))
+        tc = max(self.params.input_tc_s, self.dt)
+        omega: Vec3 = (float(err[0]) / tc, float(err[1]) / tc, float(err[2]) / tc)
+        self._shaped_q = quat.integrate(q, omega, self.dt)
+        return self._shaped_q, omega
+
+    _shaped_q: tuple | None = None
 
     def _rate_reference(self, omega_d: Vec3) -> tuple:
         """Rates-only setpoints are flown as an attitude reference integrated from the commanded

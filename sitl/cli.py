@@ -25,6 +25,7 @@ import sys
 from typing import NoReturn, Sequence
 
 from companion.config import ConfigError
+from companion.control.attitude import ATTITUDE_CONTROLLERS
 from companion.mavlink.signing import SigningError
 from companion.mavlink.signing_options import add_signing_options, signing_key
 
@@ -184,7 +185,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="HOST:PORT to send to from the start (repeatable)")
     ap.add_argument("--speedup", type=_finite, default=1.0, help="simulated seconds per wall second")
     ap.add_argument("--scenario", help="scenario file or bundled name: vehicle, wind, forces, gains")
-    ap.add_argument("--attitude", choices=("pd", "pd_do", "ism_do"), default="ism_do",
+    ap.add_argument("--attitude", choices=ATTITUDE_CONTROLLERS, default="ism_do",
                     help="onboard attitude controller")
     ap.add_argument("--flavour", choices=("px4", "paper", "ardupilot"), default="px4",
                     help="px4: PX4 v1.16's rules (with an attitude only the yaw rate of SET_ATTITUDE_TARGET is a "

@@ -81,7 +81,13 @@ ARDUPILOT_ROWS: tuple[Row, ...] = (
     Row("GUID_OPTIONS", "autopilot.guided_options", 0.0, 1023.0, "",
         "bitmask; bit 3 (8): SET_ATTITUDE_TARGET thrust is throttle, else a climb rate", integer=True),
     Row("GUID_TIMEOUT", "autopilot.guided_timeout_s", 0.1, 5.0, "s", "attitude targets older than this are not flown"),
-    Row("ANGLE_MAX", "autopilot.angle_max_deg", 1000.0, 7000.0, "cdeg", "maximum lean angle", scale=0.01),
+    Row("ATC_ANGLE_MAX", "autopilot.angle_max_deg", 10.0, 80.0, "deg", "maximum lean angle of ArduPilot's own "
+        "modes (not of GUIDED attitude targets)"),
+    Row("ATC_RATE_FF_ENAB", "autopilot.rate_ff_enabled", 0.0, 1.0, "", "1: attitude targets are shaped by "
+        "ATC_INPUT_TC; 0: flown as sent", integer=True),
+    Row("ATC_INPUT_TC", "autopilot.input_tc_s", 0.0, 1.0, "s", "time constant of that shaping"),
+    Row("ATC_ANGLE_BOOST", "autopilot.angle_boost", 0.0, 1.0, "", "1: throttle divided by the cosine of the "
+        "tilt", integer=True),
     Row("MOT_THST_HOVER", "derived.hover_thrust", 0.0, 1.0, "", "hover throttle, normalised", read_only=True),
 )
 
@@ -263,8 +269,10 @@ class _Binding:
                 ap.params = dataclasses.replace(ap.params, guided_thrust_is_throttle=bool(int(x) & 8))
             return guided
 
+        flag = isinstance(getattr(ap.params, path[0]), bool)
+
         def apply(x: float) -> None:
-            ap.params = dataclasses.replace(ap.params, **{path[0]: x * row.scale})
+            ap.params = dataclasses.replace(ap.params, **{path[0]: bool(x) if flag else x * row.scale})
         return apply
 
     def _set_scenario(self, row: Row, path: list[str]) -> Callable[[float], None]:

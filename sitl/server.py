@@ -291,40 +291,51 @@ class MavlinkServer:
             self._send_param_lists()
         if t + 1e-9 < self._next_due or self.transport is None:
             return
-        enc = self.telemetry.encoders
-        packed: dict[int, bytes | None] = {}
-        attitude = mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION
-        next_due = math.inf
-        sendto = self.transport.sendto
         now = time.monotonic()
         table = self.peers
+        plan: list[tuple[Peer, list[int]]] = []
         for peer in table:
-            if t + 1e-9 >= peer.next_due:
-                shared = not table.protected(peer, now)
-                for msg_id, due in list(peer.due.items()):
-                    if t + 1e-9 < due:
-                        continue
-                    if shared and not self._newcomer_streams.take(now):
-                        # the newcomers' share is spent: this one waits 0.1 s, then gets one of each
-                        self.stats["streams_shed"] += 1
-                        peer.next_due = t + 0.1
-                        break
-                    if msg_id in packed:
-                        buf = packed[msg_id]
-                    else:
-                        msg = enc[msg_id]()
-                        buf = packed[msg_id] = None if msg is None else msg.pack(self.mav)
-                        if buf is not None:
-                            self.stats["sent"] += 1
-                    if buf is not None:  # None: nothing valid to say now (e.g. no position)
-                        sendto(buf, peer.addr)
-                        if msg_id == attitude:
-                            peer.state_sent_ms = self.telemetry.time_boot_ms
-                    peer.sent(msg_id, t)
-                else:
-                    peer.next_due = min(peer.due.values(), default=math.inf)
-            next_due = min(next_due, peer.next_due)
-        self._next_due = next_due
+            if t + 1e-9 < peer.next_due:
+                continue
+            shared = not table.protected(peer, now)
+            ids: list[int] = []
+            for msg_id, due in peer.due.items():
+                if t + 1e-9 < due:
+                    continue
+                if shared and not self._newcomer_streams.take(now):
+                    # the newcomers' share is spent: this one waits 0.1 s, then gets one of each
+                    self.stats["streams_shed"] += 1
+                    peer.next_due = t + 0.1
+                    break
+                ids.append(msg_id)
+            else:
+                peer.next_due = math.inf  # set below, once its streams are sent
+            plan.append((peer, ids))
+        # each message packed once, in one order for every peer: a signed frame reused for a second
+        # peer must not reach it after a newer one (its receiver would take it for a replay)
+        order = list(dict.fromkeys(m for peer, ids in sorted(plan, key=lambda p: p[0].addr != table.controller)
+                                   for m in ids))
+        enc = self.telemetry.encoders
+        packed: dict[int, bytes | None] = {}
+        for msg_id in order:
+            msg = enc[msg_id]()
+            packed[msg_id] = None if msg is None else msg.pack(self.mav)
+            if msg is not None:
+                self.stats["sent"] += 1
+        rank = {m: i for i, m in enumerate(order)}
+        attitude = mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION
+        sendto = self.transport.sendto
+        for peer, ids in plan:
+            for msg_id in sorted(ids, key=rank.__getitem__):
+                buf = packed[msg_id]
+                if buf is not None:  # None: nothing valid to say now (e.g. no position)
+                    sendto(buf, peer.addr)
+                    if msg_id == attitude:
+                        peer.state_sent_ms = self.telemetry.time_boot_ms
+                peer.sent(msg_id, t)
+            if peer.next_due == math.inf:
+                peer.next_due = min(peer.due.values(), default=math.inf)
+        self._next_due = min((p.next_due for p in table), default=math.inf)
 
     def set_interval(self, msg_id: int, interval_s: float | None, peer: Peer | None = None) -> None:
         """Stream ``msg_id`` to ``peer`` (None: every peer) every ``interval_s`` simulated seconds

@@ -150,7 +150,7 @@ class PositionGains:
     """Acceleration source of the force DO: the accelerometer's specific force rotated to NED
     (true), or differentiated, filtered tracking positions (false: the paper's experiments, and
     the E1-E5 scenario files). A companion flying a real autopilot has the accelerometer."""
-    force_source: str = "commanded"
+    force_source: str = "measured"
     """What the force DO (30) subtracts from ``m0 (r_dd - g e3)``:
 
     - ``"commanded"`` (the paper's): the virtual force ``f = -T R(q_d) e3`` the position loop
@@ -160,6 +160,12 @@ class PositionGains:
     - ``"measured"``: ``-T R(q) e3`` with the measured attitude. The estimate is the true
       external force (plus thrust-model error), and inner-loop error is left uncompensated:
       right when the force itself is wanted (interaction, logging, ``companion estimate``).
+
+    The default is ``"measured"``: it is what the companion flies through an autopilot, where the
+    setpoint reaches the inner loop 20-60 ms late and a commanded-force estimate learns that delay
+    as a force (hover45 over a 10 % loss, 20 +- 10 ms link swings 27 % past on release with
+    ``"commanded"``, under 10 % with ``"measured"``: tests/integration/test_link_faults.py). The
+    E1-E5 scenario files choose ``"commanded"``, the paper's.
     """
 
     observer_match_delay_s: float = 0.0

@@ -337,19 +337,18 @@ class PymavlinkLink(VehicleLink):
 
     async def wait_connected(self, timeout_s: float) -> None:
         where = self.endpoint.url
-        heard_by = time.monotonic() + min(NOTHING_HEARD_S, timeout_s)
-        while not self.stats["received"] and time.monotonic() < heard_by:
+        start = time.monotonic()
+        hinted = False
+        while not self.stats["received"] and time.monotonic() - start < timeout_s:
+            if not hinted and time.monotonic() - start >= NOTHING_HEARD_S:
+                hinted = True  # say what to check early, and go on listening (a vehicle may boot later)
+                if self.progress is not None:
+                    self.progress(self._silence_hint(NOTHING_HEARD_S) + f"; still listening, up to {timeout_s:g} s")
             await asyncio.sleep(0.05)
         if not self.stats["received"]:
-            why = nothing_heard(self.endpoint, min(NOTHING_HEARD_S, timeout_s))
-            if self.endpoint.kind == "udpout":  # a signing vehicle ignores us, and is silent too
-                why += (". Last: a vehicle that uses MAVLink signing stays silent to a companion without its key "
-                        "(give its key: --signing-key-file)" if self.signature_check is None else
-                        f". Last: a signing vehicle ignores a wrong key: does it have ours (fingerprint "
-                        f"{fingerprint(self.signature_check.key)})?")
-            raise LinkError(why)
+            raise LinkError(self._silence_hint(timeout_s))
         try:
-            await asyncio.wait_for(self._connected.wait(), max(timeout_s - NOTHING_HEARD_S, 1.0))
+            await asyncio.wait_for(self._connected.wait(), max(timeout_s - (time.monotonic() - start), 1.0))
         except TimeoutError:
             beats = {k.rsplit(" ", 1)[0]: n for k, n in self.signing_rejections.items() if k.endswith(" HEARTBEAT")}
             if beats:
@@ -385,6 +384,16 @@ class PymavlinkLink(VehicleLink):
                                     1e6 / STREAM_RATES_HZ[mavlink.MAVLINK_MSG_ID_HIGHRES_IMU], require_ack=False,
                                     attempts=2)
             await asyncio.sleep(0.3)
+
+    def _silence_hint(self, after_s: float) -> str:
+        """What to check when nothing at all arrived in ``after_s``: the endpoint first, then signing."""
+        why = nothing_heard(self.endpoint, after_s)
+        if self.endpoint.kind == "udpout":  # a signing vehicle ignores us, and is silent too
+            why += (". Last: a vehicle that uses MAVLink signing stays silent to a companion without its key "
+                    "(give its key: --signing-key-file)" if self.signature_check is None else
+                    f". Last: a signing vehicle ignores a wrong key: does it have ours (fingerprint "
+                    f"{fingerprint(self.signature_check.key)})?")
+        return why
 
     async def fetch_file(self, path: str, timeout_s: float = 1.0, max_bytes: int = 4 << 20) -> bytes:
         """A file from the autopilot over MAVLink FTP (LinkError if it cannot be read)."""

@@ -122,6 +122,19 @@ class RelayProcess:
         return self.report
 
 
+def text_of(msg) -> str | None:
+    """What a STATUSTEXT says, or an EVENT (PX4, and the bundled vehicle's px4 flavour) read with
+    the catalogue; None for any other message."""
+    kind = msg.get_type()
+    if kind == "STATUSTEXT":
+        return msg.text
+    if kind == "UNKNOWN_410":
+        raw = bytes(msg.get_msgbuf())
+        event = parse_event(raw[10:10 + raw[1]])
+        return _CATALOGUE.text(event) if event is not None else None
+    return None
+
+
 class Client:
     """A pymavlink ground station on a fresh UDP socket, talking to one vehicle."""
 
@@ -137,13 +150,9 @@ class Client:
         if msg is not None:
             kind = msg.get_type()
             self.seen[kind] = msg
-            if kind == "STATUSTEXT":
-                self.texts.append(msg.text)
-            elif kind == "UNKNOWN_410":  # an EVENT (PX4, and the bundled vehicle's px4 flavour)
-                raw = bytes(msg.get_msgbuf())
-                event = parse_event(raw[10:10 + raw[1]])
-                if event is not None:
-                    self.texts.append(_CATALOGUE.text(event))
+            text = text_of(msg)
+            if text is not None:
+                self.texts.append(text)
         return msg
 
     def wait(self, kind: str | tuple[str, ...], cond=lambda m: True, timeout: float = 10.0):
@@ -188,7 +197,11 @@ class Client:
         self.m.mav.set_attitude_target_send(0, target[0], target[1], type_mask, list(q), *rates, thrust)
 
     def param(self, name: str, timeout: float = 5.0, tries: int = 3) -> float:
-        """A parameter's value; asked again if no answer (a busy vehicle may learn our address late)."""
+        """A parameter's value now; asked again if no answer (a busy vehicle may learn our address
+        late). What is already queued is read first: the vehicle announces every change to every
+        client, and an old announcement must not pass for the answer."""
+        while self.recv(0) is not None:
+            pass
         for attempt in range(tries):
             self.m.mav.param_request_read_send(1, 1, name.encode(), -1)
             try:

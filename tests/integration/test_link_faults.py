@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
-from helpers.processes import PAPER, PAPER_OUTPUT
+from helpers.processes import PAPER, PAPER_OUTPUT, text_of
 
 from companion.plots import load_timeseries
 
@@ -59,8 +59,8 @@ class Observer:
             kind = msg.get_type()
             if kind == "LOCAL_POSITION_NED":
                 self.positions.append((msg.time_boot_ms / 1000, msg.x, msg.y, msg.z))
-            elif kind == "STATUSTEXT":
-                self.texts.append(msg.text)
+            elif text_of(msg) is not None:  # STATUSTEXT or EVENT
+                self.texts.append(text_of(msg))
             elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1:
                 self.armed.append((time.monotonic(), bool(msg.base_mode & 128), msg.custom_mode))
 

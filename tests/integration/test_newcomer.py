@@ -45,17 +45,29 @@ def test_ctrl_c_in_the_demo_lands_the_vehicle_and_ends_the_demo(tmp_path):
 
 
 def test_no_vehicle_says_what_to_check_within_5_s_and_leaves_no_empty_folder(tmp_path):
+    """Nothing on the port: within 5 s the companion says what to check (running? port? udp vs
+    udpin?), before any hint about signing, and goes on listening (a vehicle may boot after its
+    companion) until --connect-timeout; then exit 1 with the same advice, and no flight folder."""
     port = free_udp_port()
     t0 = time.monotonic()
-    r = subprocess.run([sys.executable, "-m", "companion", "fly", "missions/hold.toml", "--connect",
-                        f"udp://127.0.0.1:{port}", "--out", str(tmp_path / "flights"), "--no-plots"], cwd=ROOT,
-                       capture_output=True, text=True, env=child_env(), timeout=60)
+    proc = subprocess.Popen([sys.executable, "-m", "companion", "fly", "missions/hold.toml", "--connect",
+                             f"udp://127.0.0.1:{port}", "--out", str(tmp_path / "flights"), "--no-plots",
+                             "--connect-timeout", "8"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, env=child_env())
+    hinted_after = None
+    lines = []
+    for line in proc.stdout:  # type: ignore[union-attr]
+        lines.append(line)
+        if hinted_after is None and "is the vehicle running" in line:
+            hinted_after = time.monotonic() - t0
+    proc.wait(timeout=60)
     took = time.monotonic() - t0
-    assert r.returncode == 1, r.stdout + r.stderr
-    assert took < 5.0 + 1.0, took  # 3 s of listening and Python's start within 5 s (1 s spare for a busy host)
-    assert "is the vehicle running" in r.stderr and "udpin" in r.stderr, r.stderr
-    first = r.stderr.index("is the vehicle running")
-    assert "signing" not in r.stderr[:first] and r.stderr.index("udpin") < r.stderr.find("signing")  # hints first
+    out = "".join(lines)
+    assert proc.returncode == 1, out
+    assert hinted_after is not None and hinted_after < 5.0 + 1.0, (hinted_after, out)  # 1 s spare: busy host
+    assert "still listening" in out and took >= 8.0, (took, out)
+    last = out[out.rindex("is the vehicle running"):]
+    assert "udpin" in last and last.index("udpin") < last.find("signing")  # hints first
     assert not (tmp_path / "flights").exists() or not any((tmp_path / "flights").iterdir())
 
 

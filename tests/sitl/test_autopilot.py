@@ -139,6 +139,10 @@ def test_a_mode_change_ends_the_failsafe():
 # --- ArduPilot flavour -----------------------------------------------------------------------
 
 
+AS_THE_COMPANION_SETS_IT = {"rate_ff_enabled": False, "angle_boost": False}
+"""ATC_RATE_FF_ENAB 0 and ATC_ANGLE_BOOST 0: what companion.flight.prepare sets before it flies"""
+
+
 def guided_airborne(**params):
     ap = make(flavour="ardupilot", position_after_s=0.0, **params)
     assert ap.command(22, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.DENIED  # not armed
@@ -166,7 +170,7 @@ def test_ardupilot_thrust_is_a_climb_rate_unless_guid_options_makes_it_throttle(
     """0.5 holds altitude whatever the mass; with GUID_OPTIONS bit 3 the same 0.5 is throttle,
     9.3 N against 6.18 N of weight, so the vehicle climbs."""
     for throttle, climbs in ((False, False), (True, True)):
-        ap = guided_airborne(guided_thrust_is_throttle=throttle)
+        ap = guided_airborne(guided_thrust_is_throttle=throttle, **AS_THE_COMPANION_SETS_IT)
         z0 = ap.vehicle.state.pos_ned_m[2]
         stream(ap, 2.0, thrust=0.5)
         dz = ap.vehicle.state.pos_ned_m[2] - z0
@@ -177,7 +181,8 @@ def test_ardupilot_flies_targets_past_angle_max_and_levels_after_guid_timeout():
     """ArduCopter (seen on its SITL): GUIDED does not limit an attitude target to ANGLE_MAX; once the
     targets stop it flies the last one for GUID_TIMEOUT, then levels out at zero climb rate without
     holding position (it drifts on)."""
-    ap = guided_airborne(guided_thrust_is_throttle=True, angle_max_deg=30.0, guided_timeout_s=1.0)
+    ap = guided_airborne(guided_thrust_is_throttle=True, angle_max_deg=30.0, guided_timeout_s=1.0,
+                         **AS_THE_COMPANION_SETS_IT)
     hover = 0.63 * 9.81 / ap.vehicle.scenario.vehicle.thrust_max_n
     stream(ap, 0.6, q=quat.from_euler(math.radians(40.0), 0.0, 0.0), thrust=hover / math.cos(math.radians(40)))
     assert math.degrees(quat.tilt_angle(ap.setpoint.q_d)) == pytest.approx(40.0, abs=0.1)
@@ -192,8 +197,41 @@ def test_ardupilot_flies_targets_past_angle_max_and_levels_after_guid_timeout():
 
 
 def test_ardupilot_keeps_turning_the_last_target_by_its_rates_until_guid_timeout():
-    ap = guided_airborne(guided_thrust_is_throttle=True, guided_timeout_s=1.0)
+    ap = guided_airborne(guided_thrust_is_throttle=True, guided_timeout_s=1.0, **AS_THE_COMPANION_SETS_IT)
     hover = 0.63 * 9.81 / ap.vehicle.scenario.vehicle.thrust_max_n
     stream(ap, 0.2, q=quat.IDENTITY, thrust=hover, rates=(0.0, 0.3, 0.0))  # 0.3 rad/s of pitch sent along
     run(ap, 0.8)  # silent, still within GUID_TIMEOUT: the target went on pitching
     assert math.degrees(quat.tilt_angle(ap.setpoint.q_d)) > 10.0
+
+
+def test_ardupilot_shapes_attitude_targets_unless_rate_ff_is_off():
+    """ATC_RATE_FF_ENAB 1 (ArduPilot's default): a 20 deg step in the target is approached with
+    ATC_INPUT_TC, 0.15 s: after one time constant the attitude flown is near 1 - 1/e of the step
+    (12.6 deg), after 0.6 s at the target. ATC_RATE_FF_ENAB 0: the target is flown as sent."""
+    step = quat.from_euler(math.radians(20.0), 0.0, 0.0)
+    for shaped in (True, False):
+        ap = guided_airborne(guided_thrust_is_throttle=True, rate_ff_enabled=shaped, angle_boost=False)
+        hover = 0.63 * 9.81 / ap.vehicle.scenario.vehicle.thrust_max_n
+        stream(ap, 0.16, q=step, thrust=hover)  # 8 targets, 20 ms apart
+        tilt = math.degrees(quat.tilt_angle(ap.setpoint.q_d))
+        if shaped:
+            assert tilt == pytest.approx(20.0 * (1.0 - math.exp(-0.16 / 0.15)), abs=1.0)
+            stream(ap, 0.44, q=step, thrust=hover)
+            assert math.degrees(quat.tilt_angle(ap.setpoint.q_d)) == pytest.approx(20.0, abs=0.5)
+        else:
+            assert tilt == pytest.approx(20.0, abs=0.01)
+
+
+def test_ardupilot_boosts_throttle_by_the_tilt_unless_angle_boost_is_off():
+    """ATC_ANGLE_BOOST 1: a throttle of u at a 30 deg lean becomes u / cos 30 deg (15 % more);
+    with 0 it is flown as sent."""
+    tilt = quat.from_euler(math.radians(30.0), 0.0, 0.0)
+    for boost in (True, False):
+        ap = guided_airborne(guided_thrust_is_throttle=True, rate_ff_enabled=False, angle_boost=boost)
+        m = ap.vehicle.scenario.vehicle
+        u = 0.63 * 9.81 / math.cos(math.radians(30.0)) / m.thrust_max_n
+        stream(ap, 0.5, q=tilt, thrust=u)
+        lean = float(quat.tilt_angle(ap.vehicle.estimator.q))
+        expected = u * m.thrust_max_n / (math.cos(lean) if boost else 1.0)
+        assert ap.setpoint.thrust_n == pytest.approx(expected, rel=1e-3)  # the tilt of one step earlier
+        assert (ap.setpoint.thrust_n / (u * m.thrust_max_n) > 1.1) is boost

@@ -147,7 +147,8 @@ def test_a_churn_of_addresses_never_evicts_the_controller_or_an_established_clie
     s, wire = server()
     q = [1.0, 0.0, 0.0, 0.0]
     join(s, GCS)
-    s.datagram_received(frame(255, "set_attitude_target_encode", 0, 1, 1, ROLL_PITCH_RATES_IGNORED, q, 0, 0, 0, 0.3), CONTROLLER)
+    setpoint = frame(255, "set_attitude_target_encode", 0, 1, 1, ROLL_PITCH_RATES_IGNORED, q, 0, 0, 0, 0.3)
+    s.datagram_received(setpoint, CONTROLLER)
     for i in range(5000):
         s.datagram_received(heartbeat(sysid=100), ("127.0.0.2", 20000 + i))
     assert CONTROLLER in s.peers and GCS in s.peers and len(s.peers) == MAX_PEERS
