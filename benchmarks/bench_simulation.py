@@ -19,7 +19,7 @@ import statistics
 import sys
 import time
 
-from sitl.scenario import load_scenario
+from sitl.plant.scenario import load_scenario
 from sitl.simulation import Simulation
 
 

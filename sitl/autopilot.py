@@ -1,6 +1,6 @@
 """The simulated vehicle's autopilot: PX4-like modes, arming, take-off, landing, offboard, failsafe.
 
-Pure logic over a :class:`~sitl.vehicle.SimVehicle`; no sockets, no clock. The MAVLink edge
+Pure logic over a :class:`~sitl.plant.vehicle.SimVehicle`; no sockets, no clock. The MAVLink edge
 (:mod:`sitl.mavlink_server`) decodes messages into the calls below and encodes the state back.
 
 Rules, as PX4 has them (../shared/MAVLINK.md):
@@ -34,7 +34,7 @@ from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, Positio
 from companion.control.trajectory import ReferenceFilter
 from companion.control.vector import ZERO3, Vec3
 
-from .vehicle import SimVehicle
+from .plant.vehicle import SimVehicle
 
 __all__ = [
     "Mode",

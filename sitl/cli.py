@@ -31,10 +31,10 @@ from companion.mavlink.signing_options import add_signing_options, signing_key
 
 from .autopilot import Autopilot, AutopilotParams
 from .parameters import out_of_range
-from .scenario import Scenario, load_scenario
+from .plant.scenario import Scenario, load_scenario
 from .server import MavlinkServer, ServerConfig
 from .telemetry import GeoOrigin
-from .vehicle import SimVehicle
+from .plant.vehicle import SimVehicle
 
 __all__ = ["main", "build", "parse_address"]
 

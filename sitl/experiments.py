@@ -2,7 +2,7 @@
 
     sitl-experiments all --out results          # E1-E5
     sitl-experiments E1_step_force E5_suspended_weight --jobs 2
-    sitl-experiments sitl/scenarios/E3_wind.toml --seeds 100
+    sitl-experiments sitl/plant/scenarios/E3_wind.toml --seeds 100
     sitl-experiments E3_calm --set position.force_source=measured --out results/measured
 
 Per scenario, in ``OUT/<name>/``: one gzipped CSV time series per run (``runs/``), a metrics
@@ -27,7 +27,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from .metrics import SegmentMetrics, flight_metrics
-from .scenario import SCENARIO_DIR, Scenario, apply_settings, load_scenario, parse_setting
+from .plant.scenario import SCENARIO_DIR, Scenario, apply_settings, load_scenario, parse_setting
 from .simulation import FlightLog, simulate
 
 __all__ = ["Case", "ExperimentResult", "run_experiment", "main", "PAPER_EXPERIMENTS"]

@@ -27,7 +27,7 @@ import math
 from companion.control.vector import ZERO3
 
 from .autopilot import Autopilot, Severity
-from .sensors import ImuSample
+from .plant.sensors import ImuSample
 
 __all__ = ["StepGuard", "LOSS_OF_CONTROL_RAD", "LOSS_OF_CONTROL_S"]
 

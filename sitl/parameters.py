@@ -7,7 +7,7 @@ has the parameter (COM_OF_LOSS_T, MIS_TAKEOFF_ALT, ...); SIM_* are the simulatio
 
 One declarative table (:data:`PX4_ROWS`, :data:`ARDUPILOT_ROWS`, :data:`COMMON_ROWS`): each row
 names the field it sets (of the autopilot's :class:`~sitl.autopilot.AutopilotParams`, of the
-live :class:`~sitl.scenario.Scenario`, or of the vehicle), its range and its unit. The ranges are
+live :class:`~sitl.plant.scenario.Scenario`, or of the vehicle), its range and its unit. The ranges are
 what flies: any value in range, alone or with any others in range, leaves the hovering vehicle
 upright (``tests/sitl/test_parameters.py`` sets them all, edges included, in flight), except the
 rows marked as deliberate faults (a dead motor, a failed sensor), which end in a defined failsafe.

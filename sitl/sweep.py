@@ -58,7 +58,7 @@ from companion.control.attitude import ATTITUDE_CONTROLLERS
 from companion.control.position import POSITION_CONTROLLERS
 
 from .metrics import SegmentMetrics, segment_metrics
-from .scenario import Scenario, Segment, load_scenario
+from .plant.scenario import Scenario, Segment, load_scenario
 from .simulation import simulate
 
 __all__ = ["SweepSpec", "Task", "Member", "stack_gains", "NAMED_PARAMETERS", "load_sweep", "apply_parameters",

@@ -6,8 +6,8 @@ import pytest
 
 from companion.control import quaternion as quat
 from sitl.autopilot import Autopilot, AutopilotParams, LandedState, MavResult, Mode
-from sitl.scenario import Scenario
-from sitl.vehicle import SimVehicle
+from sitl.plant.scenario import Scenario
+from sitl.plant.vehicle import SimVehicle
 
 NAN = math.nan
 

@@ -12,7 +12,7 @@ import pytest
 
 from sitl.claims import CLAIMS, judge
 from sitl.experiments import Case, ExperimentResult, run_experiment
-from sitl.scenario import Segment, apply_settings, load_scenario
+from sitl.plant.scenario import Segment, apply_settings, load_scenario
 
 pytestmark = pytest.mark.slow
 SEEDS = [1, 2, 3, 4, 5]
