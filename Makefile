@@ -23,7 +23,7 @@ demo: $(VENV)/.runtime
 	$(PY) -m companion demo --out flights
 
 experiments: setup
-	$(PY) -m sitl.experiments all --out $(OUT)
+	$(PY) -m sitl.lab.experiments all --out $(OUT)
 
 test: setup lint
 	$(PY) -m pytest -q

@@ -20,7 +20,7 @@ import sys
 import time
 
 from sitl.plant.scenario import load_scenario
-from sitl.simulation import Simulation
+from sitl.lab.simulation import Simulation
 
 
 def time_run(n: int, seconds: float) -> float:

@@ -10,7 +10,7 @@ from sitl.plant.airframe import AirframeParams
 from sitl.plant.dynamics import Plant
 from sitl.plant.scenario import Scenario
 from sitl.plant.sensors import Imu, Mocap, SensorParams
-from sitl.simulation import simulate
+from sitl.lab.simulation import simulate
 from sitl.plant.wind import WindParams
 
 V = VehicleParams()

@@ -27,7 +27,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from .metrics import SegmentMetrics, flight_metrics
-from .plant.scenario import SCENARIO_DIR, Scenario, apply_settings, load_scenario, parse_setting
+from ..plant.scenario import SCENARIO_DIR, Scenario, apply_settings, load_scenario, parse_setting
 from .simulation import FlightLog, simulate
 
 __all__ = ["Case", "ExperimentResult", "run_experiment", "main", "PAPER_EXPERIMENTS"]
@@ -202,7 +202,7 @@ def summary_table(result: ExperimentResult) -> str:
 
 
 def claims_table(result: ExperimentResult) -> list[str]:
-    """The paper's claims about this scenario (sitl/claims.py), judged on this result."""
+    """The paper's claims about this scenario (sitl/lab/claims.py), judged on this result."""
     from .claims import claims_for, judge
 
     out = []

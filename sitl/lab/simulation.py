@@ -21,8 +21,8 @@ from companion.control import quaternion as quat
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
 from companion.control.trajectory import PositionReference, ReferenceFilter
 
-from .plant.scenario import Scenario
-from .plant.vehicle import SimVehicle
+from ..plant.scenario import Scenario
+from ..plant.vehicle import SimVehicle
 
 __all__ = ["LOG_COLUMNS", "FlightLog", "Simulation", "simulate"]
 
