@@ -20,7 +20,7 @@ from pymavlink import mavutil
 
 from companion.mavlink.events import EventCatalogue, parse_event
 from companion.vehicle_process import VehicleProcess
-from sitl.events import catalogue
+from sitl.autopilot.events import catalogue
 
 _CATALOGUE = EventCatalogue.from_bytes(catalogue())
 

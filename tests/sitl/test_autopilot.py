@@ -5,7 +5,7 @@ import math
 import pytest
 
 from companion.control import quaternion as quat
-from sitl.autopilot import Autopilot, AutopilotParams, LandedState, MavResult, Mode
+from sitl.autopilot.logic import Autopilot, AutopilotParams, LandedState, MavResult, Mode
 from sitl.plant.scenario import Scenario
 from sitl.plant.vehicle import SimVehicle
 
@@ -156,7 +156,7 @@ def guided_airborne(**params):
 
 
 def test_ardupilot_modes_are_copter_numbers():
-    from sitl.autopilot import custom_mode, mode_from_command
+    from sitl.autopilot.logic import custom_mode, mode_from_command
 
     assert custom_mode(Mode.GUIDED, "ardupilot") == 4 and custom_mode(Mode.LAND, "ardupilot") == 9
     assert custom_mode(Mode.TAKEOFF, "ardupilot") == 4  # take-off runs inside GUIDED

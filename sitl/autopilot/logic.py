@@ -1,7 +1,7 @@
 """The simulated vehicle's autopilot: PX4-like modes, arming, take-off, landing, offboard, failsafe.
 
 Pure logic over a :class:`~sitl.plant.vehicle.SimVehicle`; no sockets, no clock. The MAVLink edge
-(:mod:`sitl.mavlink_server`) decodes messages into the calls below and encodes the state back.
+(:mod:`sitl.autopilot.server`) decodes messages into the calls below and encodes the state back.
 
 Rules, as PX4 has them (../shared/MAVLINK.md):
 
@@ -34,7 +34,7 @@ from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, Positio
 from companion.control.trajectory import ReferenceFilter
 from companion.control.vector import ZERO3, Vec3
 
-from .plant.vehicle import SimVehicle
+from ..plant.vehicle import SimVehicle
 
 __all__ = [
     "Mode",
@@ -365,7 +365,7 @@ class Autopilot:
 
     def terminate(self, reason: str) -> None:
         """Flight termination, PX4's answer to a failure it cannot fly through (its failure
-        detector) and ours to a numerical fault (sitl.guard): motors off where it is, disarmed,
+        detector) and ours to a numerical fault (sitl.autopilot.guard): motors off where it is, disarmed,
         the reason latched."""
         self.terminated = reason
         self._say(Severity.CRITICAL, f"{reason}: motors off")

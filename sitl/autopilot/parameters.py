@@ -6,7 +6,7 @@ a mass error or a weak motor take effect at the next plant step. Names follow PX
 has the parameter (COM_OF_LOSS_T, MIS_TAKEOFF_ALT, ...); SIM_* are the simulation's own.
 
 One declarative table (:data:`PX4_ROWS`, :data:`ARDUPILOT_ROWS`, :data:`COMMON_ROWS`): each row
-names the field it sets (of the autopilot's :class:`~sitl.autopilot.AutopilotParams`, of the
+names the field it sets (of the autopilot's :class:`~sitl.autopilot.logic.AutopilotParams`, of the
 live :class:`~sitl.plant.scenario.Scenario`, or of the vehicle), its range and its unit. The ranges are
 what flies: any value in range, alone or with any others in range, leaves the hovering vehicle
 upright (``tests/sitl/test_parameters.py`` sets them all, edges included, in flight), except the
@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator
 
-from .autopilot import Autopilot, Severity
+from .logic import Autopilot, Severity
 
 __all__ = ["Row", "Param", "ParamTable", "build_parameters", "markdown_table", "PX4_ROWS", "ARDUPILOT_ROWS",
            "COMMON_ROWS", "ATTITUDE_KINDS"]
