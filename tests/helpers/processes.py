@@ -97,10 +97,10 @@ class SitlProcess(VehicleProcess):
 
 
 class RelayProcess:
-    """``python -m sitl.relay`` between a client and a vehicle; :meth:`stop` returns its counters."""
+    """``python -m sitl.netem.relay`` between a client and a vehicle; :meth:`stop` returns its counters."""
 
     def __init__(self, to: str, *args: str) -> None:
-        cmd = [sys.executable, "-m", "sitl.relay", "--listen", "127.0.0.1:0", "--to", to, *args]
+        cmd = [sys.executable, "-m", "sitl.netem.relay", "--listen", "127.0.0.1:0", "--to", to, *args]
         self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      env=child_env())
         line = self.proc.stdout.readline()  # type: ignore[union-attr]
