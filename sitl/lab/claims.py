@@ -1,7 +1,7 @@
 """The paper's claims (section V) as checks that can fail, judged on an experiment's result.
 
 A :class:`Claim` names its scenario, quotes what the paper says, and judges an
-:class:`~sitl.lab.experiments.ExperimentResult` of any number of seeds: it holds only if it holds in
+:class:`~sitl.lab.results.ExperimentResult` of any number of seeds: it holds only if it holds in
 *every* seed, or, for the box-plot claims of Fig. 8, for the median over seeds, as the paper's
 figure shows. Each check also tests that what it compares against is what it claims to be (a
 baseline that does not behave as the PID the paper specifies fails the claim, instead of making
@@ -20,7 +20,7 @@ from typing import Callable
 
 import numpy as np
 
-from .experiments import ExperimentResult
+from .results import ExperimentResult
 
 __all__ = ["Verdict", "Claim", "CLAIMS", "judge", "claims_for"]
 

@@ -11,7 +11,8 @@ import dataclasses
 import pytest
 
 from sitl.lab.claims import CLAIMS, judge
-from sitl.lab.experiments import Case, ExperimentResult, run_experiment
+from sitl.lab.experiments import run_experiment
+from sitl.lab.results import Case, ExperimentResult
 from sitl.plant.scenario import Segment, apply_settings, load_scenario
 
 pytestmark = pytest.mark.slow
