@@ -26,8 +26,8 @@ import math
 
 from companion.control.vector import ZERO3
 
-from .logic import Autopilot, Severity
 from ..plant.sensors import ImuSample
+from .logic import Autopilot, Severity
 
 __all__ = ["StepGuard", "LOSS_OF_CONTROL_RAD", "LOSS_OF_CONTROL_S"]
 

@@ -37,12 +37,12 @@ from companion.mavlink.signing import SignatureCheck, enable_signing, is_signed
 from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
 
-from .logic import Autopilot, MavResult, Severity
+from ..percentiles import percentiles_ms
 from .events import catalogue, event_id
 from .guard import StepGuard
+from .logic import Autopilot, MavResult, Severity
 from .parameters import ParamTable, build_parameters
 from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
-from ..percentiles import percentiles_ms
 from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
 
 __all__ = ["ServerConfig", "MavlinkServer", "MAX_PEERS"]

@@ -57,8 +57,8 @@ from companion.config import ConfigError, load_toml, locate
 from companion.control.attitude import ATTITUDE_CONTROLLERS
 from companion.control.position import POSITION_CONTROLLERS
 
-from .metrics import SegmentMetrics, segment_metrics
 from ..plant.scenario import Scenario, Segment, load_scenario
+from .metrics import SegmentMetrics, segment_metrics
 from .simulation import simulate
 
 __all__ = ["SweepSpec", "Task", "Member", "stack_gains", "NAMED_PARAMETERS", "load_sweep", "apply_parameters",
