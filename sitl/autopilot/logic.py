@@ -232,7 +232,6 @@ class Autopilot:
         self.landed = True
         self.arm_time = 0.0
         self.home: Vec3 = vehicle.state.pos_ned_m
-        self.home_yaw = 0.0
         self.lifted_off = False
         self.touchdown_time: float | None = None
         self.failsafe: str | None = None
@@ -346,7 +345,6 @@ class Autopilot:
             self.arm_time = self.t
             self.lifted_off = False
             self.home = self.vehicle.tracked.pos_ned_m
-            self.home_yaw = float(quat.to_euler(self.vehicle.estimator.q)[2])
             self.vehicle.motors_on = True
             self._reset_controllers()
             self._say(Severity.INFO, "Armed")

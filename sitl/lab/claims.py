@@ -71,10 +71,6 @@ def _median(result: ExperimentResult, field: str, segment: str, position: str, a
     return float(np.median(_per_seed(result, field, segment, position, attitude)))
 
 
-def _fmt(xs: list[float], unit: str = "") -> str:
-    return "[" + ", ".join(f"{x:.3g}" for x in xs) + "]" + unit
-
-
 # --- E1, Fig. 6 ------------------------------------------------------------------------------
 
 
