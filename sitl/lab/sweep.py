@@ -1,6 +1,6 @@
 """Monte-Carlo sweeps: many offline flights, one tidy table.
 
-    sitl-sweep sitl/lab/sweeps/e3_wind.toml                          # all local cores
+    sitl-sweep sitl/lab/sweeps/e3_wind.toml                      # all local cores
     sitl-sweep my_sweep.toml --scheduler tcp://10.0.0.5:8786      # a Dask cluster
     sitl-sweep my_sweep.toml --retry-failed                       # re-run only what failed
 
