@@ -175,6 +175,12 @@ class AutopilotParams:
     """ArduPilot GUID_OPTIONS bit 3: thrust is throttle (else a climb rate, 0.5 = hold altitude)"""
 
 
+HOVER_STALE = 1.07
+"""ArduCopter's MOT_THST_HOVER at boot over the throttle that really hovers (seen on its SITL)"""
+HOVER_LEARN_TC_S = 10.0
+"""the time constant of ArduCopter's hover-throttle learning (AP_MOTORS_THST_HOVER_TC)"""
+
+
 def _angle_boost(q: tuple) -> float:
     """ArduPilot's throttle boost at the vehicle's tilt: 1 / cos(tilt), the cosine floored at 0.1,
     fading to 0 past 84 deg (get_throttle_boosted)."""
@@ -596,7 +602,22 @@ class Autopilot:
             self.setpoint = self._mode_setpoint()
         self.vehicle.step(self.setpoint)
         self._update_landed()
+        if self.armed and not self.landed:
+            self.airborne_s += self.dt
         self._k += 1
+
+    airborne_s = 0.0
+    """vehicle seconds flown (armed, off the ground) since boot"""
+
+    def reported_hover_throttle(self) -> float:
+        """MPC_THR_HOVER / MOT_THST_HOVER as the autopilot reports it. PX4's is the model's. ArduCopter's
+        is a learnt value (MOT_HOVER_LEARN 2): at boot the saved one, 7 % off on its SITL
+        (HOVER_STALE), converging to the truth with a 10 s time constant of flight (HOVER_LEARN_TC_S)."""
+        m = self.vehicle.scenario.vehicle
+        true = m.weight_n / m.thrust_max_n
+        if not self.ardupilot:
+            return true
+        return true * (1.0 + (HOVER_STALE - 1.0) * math.exp(-self.airborne_s / HOVER_LEARN_TC_S))
 
     def _sensor_failsafes(self) -> None:
         """A failed IMU or lost position in the air: say why once, and land (blind if need be)."""

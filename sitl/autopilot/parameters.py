@@ -88,7 +88,8 @@ ARDUPILOT_ROWS: tuple[Row, ...] = (
     Row("ATC_INPUT_TC", "autopilot.input_tc_s", 0.0, 1.0, "s", "time constant of that shaping"),
     Row("ATC_ANGLE_BOOST", "autopilot.angle_boost", 0.0, 1.0, "", "1: throttle divided by the cosine of the "
         "tilt", integer=True),
-    Row("MOT_THST_HOVER", "derived.hover_thrust", 0.0, 1.0, "", "hover throttle, normalised", read_only=True),
+    Row("MOT_THST_HOVER", "derived.hover_thrust", 0.0, 1.0, "", "hover throttle, normalised: 7 % high at boot, "
+        "learnt in flight (10 s time constant)", read_only=True),
 )
 
 COMMON_ROWS: tuple[Row, ...] = (
@@ -231,7 +232,6 @@ class _Binding:
     def __init__(self, ap: Autopilot) -> None:
         self.ap = ap
         self.v = ap.vehicle
-        self.hover = self.v.scenario.vehicle.weight_n / self.v.scenario.vehicle.thrust_max_n
 
     def get(self, row: Row) -> float:
         root, *path = row.field.split(".")
@@ -254,7 +254,7 @@ class _Binding:
             return 0.0
         if path == ["seed"]:
             return float(v.seeds if isinstance(v.seeds, int) else v.seeds[0])
-        return self.hover
+        return ap.reported_hover_throttle()
 
     def setter(self, row: Row) -> Callable[[float], None] | None:
         if row.read_only:
