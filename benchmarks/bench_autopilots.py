@@ -74,7 +74,8 @@ def main() -> int:
         print(f"skipped PX4: {why_px4}")
     if copter is not None:
         plan.append(("ArduCopter SITL, calm", lambda: ArduCopterSitl(copter, speedup=ARDUPILOT_SPEED), lambda v: v.url))
-        wind = {"SIM_WIND_SPD": 3.0, "SIM_WIND_DIR": 0.0, "SIM_WIND_TURB": 0.0, "SIM_WIND_T": 1.0}  # T 1: no height profile
+        # SIM_WIND_T 1: no height profile (with the default the wind is nil near the ground)
+        wind = {"SIM_WIND_SPD": 3.0, "SIM_WIND_DIR": 0.0, "SIM_WIND_TURB": 0.0, "SIM_WIND_T": 1.0}
         plan.append(("ArduCopter SITL, 3 m/s wind", lambda: ArduCopterSitl(copter, speedup=ARDUPILOT_SPEED,
                                                                            params=wind), lambda v: v.url))
     else:

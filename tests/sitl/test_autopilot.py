@@ -240,7 +240,7 @@ def test_ardupilot_boosts_throttle_by_the_tilt_unless_angle_boost_is_off():
 def test_ardupilot_reports_a_stale_hover_throttle_that_it_learns_in_flight():
     """MOT_THST_HOVER: 7 % above the true hover throttle at boot (as ArduCopter SITL reports its saved
     0.35), e^-1 of that error left after 10 s airborne; PX4's MPC_THR_HOVER is the model's."""
-    from sitl.autopilot import HOVER_STALE
+    from sitl.autopilot.logic import HOVER_STALE
 
     ap = guided_airborne(guided_thrust_is_throttle=True, **AS_THE_COMPANION_SETS_IT)
     m = ap.vehicle.scenario.vehicle
