@@ -219,21 +219,22 @@ def _roll(deg: float) -> tuple[float, float, float, float]:
 
 def test_arducopter_shapes_attitude_targets_with_rate_ff_enab(copter):
     """A 20 deg roll step, once with ATC_RATE_FF_ENAB 0 and once with 1 (ArduPilot's default), in one
-    boot: with shaping (ATC_INPUT_TC 0.15 s) the vehicle reaches half the step later, by at least a
-    third of that time constant (0.05 s of vehicle time)."""
+    boot. Shaped (ATC_INPUT_TC 0.15 s) the step is a critically damped second order whose fastest
+    turn is 20 deg / (e x 0.15 s) = 49 deg/s; unshaped the vehicle turns as fast as its attitude loop
+    lets it. Asserted: the shaped peak roll rate within 35-70 deg/s and at most 80 % of the
+    unshaped one (ArduCopter 4.8 SITL: about 50 against 75 deg/s)."""
     m = copter.connect()
     _guided_airborne(m, copter)
     hover = _hover_throttle(m, copter)
     _fast_streams(m, copter)
-    half_at = {}
+    peak = {}
     for ff in (0.0, 1.0):
         _set_param(m, copter, "ATC_RATE_FF_ENAB", ff)
         _fly_and_record(m, copter, 1.5, _roll(0.0), hover)
         seen = [a for a in _fly_and_record(m, copter, 1.0, _roll(20.0), hover / math.cos(math.radians(20)))
                 if a.get_type() == "ATTITUDE"]
-        t0 = next(a.time_boot_ms for a in seen if math.degrees(a.roll) > 1.0) * 1e-3  # the step began
-        half_at[ff] = next(a.time_boot_ms for a in seen if math.degrees(a.roll) > 10.0) * 1e-3 - t0
-    assert half_at[1.0] - half_at[0.0] > 0.05, half_at
+        peak[ff] = max(math.degrees(a.rollspeed) for a in seen)
+    assert 35.0 < peak[1.0] < 70.0 and peak[1.0] < 0.8 * peak[0.0], peak
 
 
 def test_arducopter_boosts_throttle_by_the_tilt_with_angle_boost(copter):

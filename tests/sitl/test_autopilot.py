@@ -205,9 +205,10 @@ def test_ardupilot_keeps_turning_the_last_target_by_its_rates_until_guid_timeout
 
 
 def test_ardupilot_shapes_attitude_targets_unless_rate_ff_is_off():
-    """ATC_RATE_FF_ENAB 1 (ArduPilot's default): a 20 deg step in the target is approached with
-    ATC_INPUT_TC, 0.15 s: after one time constant the attitude flown is near 1 - 1/e of the step
-    (12.6 deg), after 0.6 s at the target. ATC_RATE_FF_ENAB 0: the target is flown as sent."""
+    """ATC_RATE_FF_ENAB 1 (ArduPilot's default): a 20 deg step in the target is approached as a
+    critically damped second order of time constant ATC_INPUT_TC, 0.15 s: after 0.16 s the attitude
+    flown is near 20 (1 - (1 + x) e^-x) deg, x = 0.16 / 0.15 (5.8 deg), after 1 s at the target.
+    ATC_RATE_FF_ENAB 0: the target is flown as sent."""
     step = quat.from_euler(math.radians(20.0), 0.0, 0.0)
     for shaped in (True, False):
         ap = guided_airborne(guided_thrust_is_throttle=True, rate_ff_enabled=shaped, angle_boost=False)
@@ -215,8 +216,9 @@ def test_ardupilot_shapes_attitude_targets_unless_rate_ff_is_off():
         stream(ap, 0.16, q=step, thrust=hover)  # 8 targets, 20 ms apart
         tilt = math.degrees(quat.tilt_angle(ap.setpoint.q_d))
         if shaped:
-            assert tilt == pytest.approx(20.0 * (1.0 - math.exp(-0.16 / 0.15)), abs=1.0)
-            stream(ap, 0.44, q=step, thrust=hover)
+            x = 0.16 / 0.15
+            assert tilt == pytest.approx(20.0 * (1.0 - (1.0 + x) * math.exp(-x)), abs=1.0)
+            stream(ap, 0.84, q=step, thrust=hover)
             assert math.degrees(quat.tilt_angle(ap.setpoint.q_d)) == pytest.approx(20.0, abs=0.5)
         else:
             assert tilt == pytest.approx(20.0, abs=0.01)
