@@ -145,6 +145,13 @@ class Param:
     unit: str = ""
     integer: bool = False
     fault: bool = False
+    live: Callable[[], float] | None = None
+    """a read-only value that changes in flight (a learnt hover throttle): read when served"""
+
+    def fresh(self) -> Param:
+        if self.live is not None:
+            self.value = self.live()
+        return self
 
 
 class ParamTable:
@@ -161,17 +168,17 @@ class ParamTable:
         return len(self._params)
 
     def __iter__(self) -> Iterator[Param]:
-        return iter(self._params)
+        return (p.fresh() for p in self._params)
 
     def index(self, name: str) -> int | None:
         return self._by_name.get(name)
 
     def at(self, index: int) -> Param | None:
-        return self._params[index] if 0 <= index < len(self._params) else None
+        return self._params[index].fresh() if 0 <= index < len(self._params) else None
 
     def get(self, name: str) -> Param | None:
         i = self._by_name.get(name)
-        return None if i is None else self._params[i]
+        return None if i is None else self._params[i].fresh()
 
     def set(self, name: str, value: float) -> str | None:
         """Apply a new value; returns why it was refused, or None."""
@@ -351,8 +358,9 @@ def build_parameters(ap: Autopilot) -> ParamTable:
     binding = _Binding(ap)
     params = []
     for row in rows_for(ap):
+        live = (lambda row=row: binding.get(row)) if row.field.startswith("derived.") else None
         params.append(Param(row.name, binding.get(row), row.minimum, row.maximum, row.description,
-                            binding.setter(row), row.unit, row.integer, row.fault))
+                            binding.setter(row), row.unit, row.integer, row.fault, live))
     return ParamTable(params)
 
 
