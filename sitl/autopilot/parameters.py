@@ -88,7 +88,7 @@ ARDUPILOT_ROWS: tuple[Row, ...] = (
     Row("ATC_INPUT_TC", "autopilot.input_tc_s", 0.0, 1.0, "s", "time constant of that shaping"),
     Row("ATC_ANGLE_BOOST", "autopilot.angle_boost", 0.0, 1.0, "", "1: throttle divided by the cosine of the "
         "tilt", integer=True),
-    Row("MOT_THST_HOVER", "derived.hover_thrust", 0.0, 1.0, "", "hover throttle, normalised: 7 % high at boot, "
+    Row("MOT_THST_HOVER", "derived.hover_thrust", 0.0, 1.0, "", "hover throttle, normalised: 5 % low at boot, "
         "learnt in flight (10 s time constant)", read_only=True),
 )
 

@@ -161,10 +161,10 @@ def _hover_throttle(m, copter) -> float:
 
 
 def test_arducopter_learns_its_hover_throttle_in_flight_from_a_stale_value(copter):
-    """MOT_THST_HOVER at boot is ArduCopter SITL's saved 0.35, about 7 % above the throttle that
+    """MOT_THST_HOVER at boot is ArduCopter SITL's saved 0.35, about 5 % below the throttle that
     hovers; MOT_HOVER_LEARN 2 learns it in level flight with a 10 s time constant. After 30 s of
-    vehicle time hovering in GUIDED (2 time constants and more since take-off) it has come down by at
-    least 3 % of its boot value and by no more than 15 %."""
+    vehicle time hovering in GUIDED (2 time constants and more since take-off) it has come up by at
+    least 3 % of its boot value and by no more than 15 % (ArduCopter 4.8 SITL: 0.350 to 0.367)."""
     m = copter.connect()
     heartbeat(m, timeout=20)
     at_boot = _hover_throttle(m, copter)
@@ -172,7 +172,7 @@ def test_arducopter_learns_its_hover_throttle_in_flight_from_a_stale_value(copte
     t0 = latest(m, "LOCAL_POSITION_NED").time_boot_ms * 1e-3
     wait(m, "LOCAL_POSITION_NED", lambda p: p.time_boot_ms * 1e-3 > t0 + 30.0, timeout=30.0 / copter.speed + 20)
     learnt = _hover_throttle(m, copter)
-    assert 0.85 * at_boot < learnt < 0.97 * at_boot, (at_boot, learnt)
+    assert 1.03 * at_boot < learnt < 1.15 * at_boot, (at_boot, learnt)
 
 
 def test_arducopter_guided_flies_an_attitude_target_beyond_its_angle_limit(copter):
