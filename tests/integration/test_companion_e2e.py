@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 import pytest
+from pymavlink import mavutil
 
 from companion.plots import load_timeseries
 
@@ -131,7 +132,9 @@ def test_killing_the_companion_lets_the_vehicle_failsafe_land(sitl, companion, c
     the vehicle leaves offboard and, like PX4 v1.16 without RC, descends (its heartbeat says POSCTL)
     and disarms on the ground.
     The vehicle waits for setpoints (WAIT) up to 1 s of wall time, then takes the stream as gone:
-    a dead companion delays the failsafe by that second of wall time, and by no simulated time."""
+    a dead companion delays the failsafe by that second of wall time, and by no simulated time.
+    Bound: 1 s + 0.5 s for a loaded host to schedule the vehicle again (118 ms late seen at load 7
+    on 2 cores)."""
     s = sitl(*WAIT, speedup=SPEEDUP)
     c = companion("missions/hover45.toml", s.url)
     c.wait_for("step hover")
@@ -143,7 +146,7 @@ def test_killing_the_companion_lets_the_vehicle_failsafe_land(sitl, companion, c
     assert "offboard lost" in obs.text("offboard lost")
     report = s.stop()
     assert not report["armed"] and report["stats"]["setpoint_waits"] >= 1
-    assert report["longest_wait_ms"] < 1100, report
+    assert report["longest_wait_ms"] < 1500, report
 
 
 def test_sigint_holds_then_lands_and_disarms(sitl, companion):
@@ -318,10 +321,13 @@ def test_the_ground_station_sees_the_force_estimate_live(sitl, companion, client
     """The companion streams its force estimate (DEBUG_VECT F_est) and tracking error (NAMED_VALUE_FLOAT
     err_m) at most 10 times a vehicle second; the vehicle routes them to its other clients, as
     PX4 and ArduPilot do to MAVProxy and QGroundControl. During hover45's attached weight the
-    estimate a ground station sees is the 6 N north force (within 0.5 N)."""
+    estimate a ground station sees is the 6 N north force (within 0.5 N). The ground station stops
+    its own telemetry streams first: at the lockstep's speed-up a Python reader on a busy host falls
+    behind them and the kernel drops datagrams, the routed ones among them (13 of ~100 seen at load 7)."""
     s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
     gcs = client(s.url, source_system=200)
     gcs.wait("HEARTBEAT")
+    gcs.m.mav.request_data_stream_send(1, 1, mavutil.mavlink.MAV_DATA_STREAM_ALL, 0, 0)  # stop them all
     c = companion("missions/hover45.toml", s.url, *PAPER_OUTPUT)
     c.wait_for("step 45 deg hover", timeout=120)
     seen: list = []

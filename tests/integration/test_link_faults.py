@@ -207,7 +207,9 @@ def test_an_outage_longer_than_the_offboard_timeout_ends_in_a_landing(tmp_path, 
     code, out, report, relay_report, pos, texts = _flight_with_outage(tmp_path, sitl, relay, companion, client, 1.25,
                                                                           record_property)
     assert code == 1, out
-    assert "left offboard (mode POSCTL) after a" in out and "telemetry outage" in out
+    # "after a N s telemetry outage" is added when the outage is still recent as the companion sees
+    # the mode; a loaded host can deliver the heartbeat later than that (seen at load 7)
+    assert "left offboard (mode POSCTL)" in out
     assert "has control: the companion stops here" in out and "holding, then landing" not in out
     assert not any("Failsafe cleared by mode change" in t for t in texts), texts
     assert any("Failsafe: offboard lost" in t for t in texts), texts
