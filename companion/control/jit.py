@@ -26,7 +26,8 @@ import os
 from pathlib import Path
 from typing import Any, Callable, TypeVar
 
-__all__ = ["jitable", "float_form", "kernel", "register_with_numba", "numba_available", "cache_dir", "SOURCES"]
+__all__ = ["jitable", "float_form", "kernel", "register_with_numba", "numba_available", "cache_dir", "SOURCES",
+           "depends_on"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -35,7 +36,14 @@ _FLOAT_FORMS: list[tuple[Callable[..., Any], Callable[..., Any]]] = []
 _registered = False
 
 SOURCES: list[Path] = [Path(__file__).parent]
-"""Folders (or files) whose ``.py`` sources compiled kernels depend on; sitl adds its own."""
+"""Folders (or files) whose ``.py`` sources compiled kernels depend on (:func:`depends_on`)."""
+
+
+def depends_on(path: str | Path) -> None:
+    """Kernels built from now on also depend on the sources in ``path`` (a folder or a file)."""
+    p = Path(path).resolve()
+    if p not in SOURCES:
+        SOURCES.append(p)
 
 
 def jitable(fn: F) -> F:
@@ -90,12 +98,8 @@ def register_with_numba() -> None:
     global _registered
     if _registered:
         return
-    from numba import config  # type: ignore[attr-defined]
     from numba.extending import overload, register_jitable
 
-    if not config.DISABLE_JIT:  # type: ignore[attr-defined]
-        # numba reads the folder when a cached kernel is created (its own NUMBA_CACHE_DIR is the base)
-        config.CACHE_DIR = str(cache_dir())  # type: ignore[attr-defined]
     for fn, impl in _FLOAT_FORMS:
         overload(fn, jit_options={}, strict=False)(_returning(impl))
     for fn in _JITABLE:
@@ -120,6 +124,8 @@ def kernel(fn: F | None = None, *, parallel: bool = False) -> Any:
         import numba
 
         register_with_numba()
+        # numba reads the folder when a cached kernel is created (NUMBA_CACHE_DIR is the base)
+        numba.config.CACHE_DIR = str(cache_dir())  # type: ignore[attr-defined]
         return numba.njit(cache=True, parallel=parallel, error_model="numpy")(f)
 
     return build(fn) if fn is not None else build
