@@ -33,7 +33,7 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 _JITABLE: list[Callable[..., Any]] = []
 _FLOAT_FORMS: list[tuple[Callable[..., Any], Callable[..., Any]]] = []
-_registered = False
+_registered = (0, 0)
 
 SOURCES: list[Path] = [Path(__file__).parent]
 """Folders (or files) whose ``.py`` sources compiled kernels depend on (:func:`depends_on`)."""
@@ -94,17 +94,16 @@ def cache_dir() -> Path:
 
 
 def register_with_numba() -> None:
-    """Make every :func:`jitable` function and :func:`float_form` callable from compiled code."""
+    """Make every :func:`jitable` function and :func:`float_form` callable from compiled code
+    (those marked since the last call: a module imported later registers its own)."""
     global _registered
-    if _registered:
-        return
     from numba.extending import overload, register_jitable
 
-    for fn, impl in _FLOAT_FORMS:
+    for fn, impl in _FLOAT_FORMS[_registered[0]:]:
         overload(fn, jit_options={}, strict=False)(_returning(impl))
-    for fn in _JITABLE:
+    for fn in _JITABLE[_registered[1]:]:
         register_jitable(fn)
-    _registered = True
+    _registered = (len(_FLOAT_FORMS), len(_JITABLE))
 
 
 def _returning(impl: Callable[..., Any]) -> Callable[..., Any]:

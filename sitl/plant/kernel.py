@@ -46,6 +46,12 @@ from companion.control.trajectory import PositionReference, ReferenceState, Traj
 from companion.control.vector import ZERO3, Vec3, lowpass_alpha, mat_t_vec, matvec
 
 from . import rng
+from .codec import codec
+
+try:
+    from numba import prange
+except ImportError:  # the simulator without its extra: the same loops, interpreted
+    prange = range
 
 depends_on(__file__)
 
@@ -749,3 +755,27 @@ def _log_row(out: NDArray[np.float64], vc: VehicleConst, st: VehicleState, ref: 
             st.wind_ned_m_s[0], st.wind_ned_m_s[1], st.wind_ned_m_s[2])
     for i in range(len(vals)):
         out[i] = vals[i]
+
+
+
+def _example() -> FlightConst:
+    from sitl.scenario import Scenario
+
+    return flight_const(Scenario(name="codec"), "ism_do", "ism_do", 1)
+
+
+FLIGHT_CODEC = codec(_example())
+"""Per-vehicle rows of a batch: every number of a :class:`FlightConst` (the arrays are the batch's)."""
+_unpack_flight = FLIGHT_CODEC.unpack
+
+
+def fly_many(template: FlightConst, rows: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
+             final: NDArray[np.float64]) -> None:
+    """:func:`fly_loop` for each vehicle (a row of ``FLIGHT_CODEC``, the arrays of ``template``),
+    in parallel over the vehicles (``prange``); ``final[i]`` gets vehicle i's last position."""
+    for i in prange(rows.shape[0]):
+        st = fly_loop(_unpack_flight(rows[i], template), steps, logs[i])
+        p = st.body.pos_ned_m
+        final[i, 0] = p[0]
+        final[i, 1] = p[1]
+        final[i, 2] = p[2]
