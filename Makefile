@@ -23,10 +23,14 @@ demo: $(VENV)/.runtime
 	$(PY) -m companion demo --out flights
 
 experiments: setup
-	$(PY) -m sitl.experiments all --out $(OUT)
+	$(PY) -m sitl.lab.experiments all --out $(OUT)
 
+# everything but the real autopilots two at a time (lockstep flights do not mind a busy host), then
+# the real-autopilot tier one at a time (each test boots PX4 or ArduCopter; skipped with the reason
+# where no build is found - see docs/autopilots.md)
 test: setup lint
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2 -m "not firmware"
+	$(PY) -m pytest -q -m firmware
 
 # the long fuzz run (CI runs the same tests with 150 examples each); FUZZ_EXAMPLES to change it
 FUZZ_EXAMPLES ?= 20000

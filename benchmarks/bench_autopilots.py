@@ -7,7 +7,7 @@ in a constant 3 m/s wind. Each figure is a median over ``--runs`` flights in one
     python benchmarks/bench_autopilots.py [--runs 3] [--out docs]
 
 Prints a table (markdown) and draws docs/figures/autopilots_square.png; the firmware is found as
-the tests find it (sitl/firmware.py: PX4_SITL_BUILD, ARDUCOPTER_SITL, ~/autopilots).
+the tests find it (tests/helpers/firmware.py: PX4_SITL_BUILD, ARDUCOPTER_SITL, ~/autopilots).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from companion.plots import load_timeseries  # noqa: E402
-from sitl.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4  # noqa: E402
+from tests.helpers.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4  # noqa: E402
 
 PX4_SPEED, ARDUPILOT_SPEED = 4.0, 2.0
 
@@ -74,7 +74,8 @@ def main() -> int:
         print(f"skipped PX4: {why_px4}")
     if copter is not None:
         plan.append(("ArduCopter SITL, calm", lambda: ArduCopterSitl(copter, speedup=ARDUPILOT_SPEED), lambda v: v.url))
-        wind = {"SIM_WIND_SPD": 3.0, "SIM_WIND_DIR": 0.0, "SIM_WIND_TURB": 0.0}
+        # SIM_WIND_T 1: no height profile (with the default the wind is nil near the ground)
+        wind = {"SIM_WIND_SPD": 3.0, "SIM_WIND_DIR": 0.0, "SIM_WIND_TURB": 0.0, "SIM_WIND_T": 1.0}
         plan.append(("ArduCopter SITL, 3 m/s wind", lambda: ArduCopterSitl(copter, speedup=ARDUPILOT_SPEED,
                                                                            params=wind), lambda v: v.url))
     else:

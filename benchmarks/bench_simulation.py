@@ -19,8 +19,8 @@ import statistics
 import sys
 import time
 
-from sitl.scenario import load_scenario
-from sitl.simulation import Simulation
+from sitl.plant.scenario import load_scenario
+from sitl.lab.simulation import Simulation
 
 
 def time_run(n: int, seconds: float) -> float:

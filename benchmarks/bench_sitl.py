@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from tests.integration.conftest import Client, SitlProcess  # noqa: E402
+from tests.helpers.processes import Client, SitlProcess  # noqa: E402
 
 
 def achieved_speedup(requested: float, wall_s: float = 5.0) -> tuple[float, dict]:

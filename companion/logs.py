@@ -37,7 +37,7 @@ SITL_COLUMNS: dict[str, str] = {
     "t": "t", "qw": "qw", "qx": "qx", "qy": "qy", "qz": "qz", "vx": "vx", "vy": "vy", "vz": "vz",
     "thrust": "thrust_sp", "truth_x": "hfx", "truth_y": "hfy", "truth_z": "hfz",
 }
-"""the project's flight records (sitl.simulation.LOG_COLUMNS): thrust in newtons"""
+"""the project's flight records (sitl.lab.simulation.LOG_COLUMNS): thrust in newtons"""
 
 
 def _interp(t: Array, ts: Array, values: Array) -> Array:

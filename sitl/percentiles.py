@@ -1,4 +1,7 @@
-"""Percentiles of a window of recent samples, in milliseconds, for the processes' exit reports."""
+"""Percentiles of a window of recent samples, in milliseconds, for the processes' exit reports.
+
+Shared by the vehicle (sitl.autopilot.server) and the relay (sitl.netem.relay), two programs that
+must not import each other, so it stands at the top of sitl/ and imports nothing of it."""
 
 from __future__ import annotations
 

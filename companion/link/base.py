@@ -42,7 +42,7 @@ class VehicleLink(abc.ABC):
     stats: Counter[str]
 
     gate: StampGate
-    """which telemetry stamps are believed (companion/stamps.py); counts into ``stats``"""
+    """which telemetry stamps are believed (companion/link/stamps.py); counts into ``stats``"""
 
     def _admit(self, stamp_s: float, wall: float) -> Admitted | None:
         """A sample's stamp through the gate; on a change of the vehicle's time base the clock and

@@ -166,7 +166,7 @@ class MavsdkLink(VehicleLink):
     async def _position(self) -> None:
         # PositionVelocityNed carries no timestamp: stamp it with the newest stamp seen (attitude
         # and IMU come at 100 Hz), not with the clock line, which runs on while a simulated
-        # vehicle pauses and would make a repeated position look new (companion/control_time.py)
+        # vehicle pauses and would make a repeated position look new (companion/flight/control_time.py)
         async for pv in self.telemetry.subscribe_position_velocity_ned():
             now = self._seen()
             p, v = pv.position, pv.velocity

@@ -6,7 +6,7 @@ wall time) then drains a steady stream no faster than it iterates, and a backlog
 moment of contention never clears: in a 2 h soak the vehicle flew setpoints that had waited
 0.1-0.4 s in its socket buffer (0.5-1.9 s of vehicle time) and lost control. Here the reader
 callback empties the socket (up to ``max_batch`` datagrams, so a flood cannot starve the
-caller's own work) every time it runs. Used by both ends: ``sitl.server`` and the pymavlink link.
+caller's own work) every time it runs. Used by both ends: ``sitl.autopilot.server`` and the pymavlink link.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The real-autopilot tier: PX4 v1.16 SIH and ArduCopter SITL, found through PX4_SITL_BUILD and
-ARDUCOPTER_SITL (sitl/firmware.py). Without a build each test is reported skipped with the reason."""
+ARDUCOPTER_SITL (tests/helpers/firmware.py). Without a build each test is reported skipped with the reason."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from helpers.processes import CompanionProcess, kill_left_over
-from sitl.firmware import find_arducopter, find_px4
+from helpers.firmware import find_arducopter, find_px4
 
 
 @pytest.fixture(scope="session")

@@ -17,7 +17,7 @@ import pytest
 from pymavlink import mavutil
 
 from helpers.processes import RelayProcess, free_udp_port
-from sitl.firmware import ArduCopterSitl
+from helpers.firmware import ArduCopterSitl
 
 from .conftest import segments
 

@@ -15,7 +15,7 @@ import time
 import pytest
 from pymavlink import mavutil
 
-from sitl.firmware import Px4Sih
+from helpers.firmware import Px4Sih
 
 from .conftest import segments
 

@@ -39,8 +39,8 @@ def lowpass(t, x, gamma=GAMMA):
 
 @pytest.fixture(scope="module")
 def e5_record(tmp_path_factory):
-    from sitl.scenario import load_scenario
-    from sitl.simulation import simulate
+    from sitl.plant.scenario import load_scenario
+    from sitl.lab.simulation import simulate
 
     sc = load_scenario("E5_suspended_weight").with_changes(duration_s=30.0, log_rate_hz=100.0)
     path = tmp_path_factory.mktemp("e5") / "e5_flight.csv"

@@ -13,7 +13,7 @@ from pymavlink import mavutil
 
 from companion.vehicle_process import VehicleProcess
 from helpers.processes import ROOT, child_env
-from sitl.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4
+from helpers.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4
 
 SPEED = 4.0
 

@@ -185,3 +185,71 @@ def test_arducopter_levels_after_guid_timeout_and_stays_in_guided(copter):
     assert abs(math.degrees(att.roll)) < 3.0, math.degrees(att.roll)
     h = latest(m, "HEARTBEAT")
     assert h.custom_mode == COPTER_MODES["GUIDED"] and h.base_mode & ARMED
+
+
+def _set_param(m, copter, name: str, value: float) -> None:
+    m.mav.param_set_send(copter.sysid, 1, name.encode(), value, mavutil.mavlink.MAV_PARAM_TYPE_REAL32)
+    wait(m, "PARAM_VALUE", lambda p: p.param_id == name and abs(p.param_value - value) < 1e-6)
+
+
+def _fly_and_record(m, copter, vehicle_s: float, q, thrust: float) -> list:
+    """SET_ATTITUDE_TARGET (attitude and throttle, rates ignored) at 50 Hz of wall time for
+    ``vehicle_s`` of vehicle time; every ATTITUDE and LOCAL_POSITION_NED of the autopilot meanwhile."""
+    seen = []
+    end = time.monotonic() + vehicle_s / copter.speed
+    while time.monotonic() < end:
+        m.mav.set_attitude_target_send(0, copter.sysid, 1, 7, list(q), 0, 0, 0, thrust)
+        stop = time.monotonic() + 0.02
+        while (msg := m.recv_match(blocking=True, timeout=max(stop - time.monotonic(), 0.001))) is not None:
+            if msg.get_srcComponent() == 1 and msg.get_type() in ("ATTITUDE", "LOCAL_POSITION_NED"):
+                seen.append(msg)
+            if time.monotonic() >= stop:
+                break
+    return seen
+
+
+def _fast_streams(m, copter) -> None:
+    for msg_id in (mavutil.mavlink.MAVLINK_MSG_ID_ATTITUDE, mavutil.mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED):
+        m.mav.command_long_send(copter.sysid, 1, 511, 0, msg_id, 20000, 0, 0, 0, 0, 0)  # 50 Hz
+
+
+def _roll(deg: float) -> tuple[float, float, float, float]:
+    return (math.cos(math.radians(deg / 2)), math.sin(math.radians(deg / 2)), 0.0, 0.0)
+
+
+def test_arducopter_shapes_attitude_targets_with_rate_ff_enab(copter):
+    """A 20 deg roll step, once with ATC_RATE_FF_ENAB 0 and once with 1 (ArduPilot's default), in one
+    boot: with shaping (ATC_INPUT_TC 0.15 s) the vehicle reaches half the step later, by at least a
+    third of that time constant (0.05 s of vehicle time)."""
+    m = copter.connect()
+    _guided_airborne(m, copter)
+    hover = _hover_throttle(m, copter)
+    _fast_streams(m, copter)
+    half_at = {}
+    for ff in (0.0, 1.0):
+        _set_param(m, copter, "ATC_RATE_FF_ENAB", ff)
+        _fly_and_record(m, copter, 1.5, _roll(0.0), hover)
+        seen = [a for a in _fly_and_record(m, copter, 1.0, _roll(20.0), hover / math.cos(math.radians(20)))
+                if a.get_type() == "ATTITUDE"]
+        t0 = next(a.time_boot_ms for a in seen if math.degrees(a.roll) > 1.0) * 1e-3  # the step began
+        half_at[ff] = next(a.time_boot_ms for a in seen if math.degrees(a.roll) > 10.0) * 1e-3 - t0
+    assert half_at[1.0] - half_at[0.0] > 0.05, half_at
+
+
+def test_arducopter_boosts_throttle_by_the_tilt_with_angle_boost(copter):
+    """At a 30 deg lean with the throttle that holds altitude there (hover / cos 30 deg), for 1 s of
+    vehicle time: with ATC_ANGLE_BOOST 1 ArduPilot divides it by cos 30 deg once more (15 % more
+    thrust, about 1.5 m/s^2 up) and the vehicle climbs at least 0.3 m more than with 0."""
+    m = copter.connect()
+    _guided_airborne(m, copter)
+    _set_param(m, copter, "ATC_RATE_FF_ENAB", 0.0)
+    hover = _hover_throttle(m, copter)
+    _fast_streams(m, copter)
+    climb = {}
+    for boost in (0.0, 1.0):
+        _set_param(m, copter, "ATC_ANGLE_BOOST", boost)
+        _fly_and_record(m, copter, 2.0, _roll(0.0), hover)
+        seen = [p for p in _fly_and_record(m, copter, 1.0, _roll(30.0), hover / math.cos(math.radians(30)))
+                if p.get_type() == "LOCAL_POSITION_NED"]
+        climb[boost] = seen[0].z - seen[-1].z
+    assert climb[1.0] - climb[0.0] > 0.3, climb

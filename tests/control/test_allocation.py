@@ -13,8 +13,8 @@ from companion.control.allocation import (
     wrench_from_rotor_speeds_sq,
 )
 from companion.control.params import VehicleParams
-from sitl.airframe import AirframeParams
-from sitl.dynamics import Plant
+from sitl.plant.airframe import AirframeParams
+from sitl.plant.dynamics import Plant
 
 V = VehicleParams()
 # rotor positions (FRD), numbered counter-clockwise seen from above starting at +x:

@@ -4,7 +4,7 @@ import pytest
 
 from companion.config import ConfigError, load_dataclass, load_toml, locate
 from companion.control.params import AttitudeGains, PositionGains, from_mapping, to_mapping
-from sitl.scenario import Scenario, load_scenario
+from sitl.plant.scenario import Scenario, load_scenario
 
 
 def test_defaults_are_the_papers():
@@ -71,7 +71,7 @@ def test_locate_nested_tables():
 
 
 def test_every_bundled_scenario_loads():
-    from sitl.scenario import SCENARIO_DIR
+    from sitl.plant.scenario import SCENARIO_DIR
 
     files = sorted(SCENARIO_DIR.glob("*.toml"))
     assert len(files) >= 5
@@ -93,7 +93,7 @@ def test_attitude_sliding_gain_sits_between_25_and_the_rotor_bandwidth():
     Hummingbird's J0; and the sliding dynamics (rate k_s inside the layer) at least four times
     slower than the rotors' 20 ms lag: k_s <= 1 / (4 * 0.02) = 12.5 rad/s. The paper's 12 fits."""
     from companion.control.params import AttitudeGains, VehicleParams, attitude_stability_margin
-    from sitl.airframe import AirframeParams
+    from sitl.plant.airframe import AirframeParams
 
     gains, vehicle = AttitudeGains(), VehicleParams()
     assert attitude_stability_margin(gains, vehicle) > 1.0

@@ -69,7 +69,7 @@ def assert_in_envelope(m: Mission) -> None:
 
 
 def _controller(m: Mission) -> OffboardController:
-    """As Flight._make_controller builds it (companion/app.py), without a vehicle to ask."""
+    """As Flight._make_controller builds it (companion/flight/runner.py), without a vehicle to ask."""
     guard = SetpointGuard(math.radians(m.safety.max_tilt_deg), math.radians(m.safety.max_rate_deg_s))
     reference = dataclasses.replace(
         m.reference,

@@ -20,8 +20,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sitl.autopilot import Autopilot, Mode
-from sitl.server import MAX_PEERS, MAX_REASONS, MavlinkServer, ServerConfig
+from sitl.autopilot.logic import Autopilot, Mode
+from sitl.autopilot.server import MAX_PEERS, MAX_REASONS, MavlinkServer, ServerConfig
 from tests.sitl.test_autopilot import airborne, make, run, stream
 
 from .strategies import FUZZ, datagram

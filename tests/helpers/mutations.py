@@ -63,7 +63,7 @@ INDI = "tests/control/test_indi.py"
 
 MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
-        "observer fed the requested torque", "sitl/onboard.py",
+        "observer fed the requested torque", "sitl/plant/onboard.py",
         (("sp.omega_d_rad_s, self.torque_applied_nm, dt_s,", "sp.omega_d_rad_s, self._requested, dt_s,"),
          ("        cmd = self.quantise_all(rotor_speeds_sq_for(tau,",
           "        self._requested = tau\n        cmd = self.quantise_all(rotor_speeds_sq_for(tau,"),

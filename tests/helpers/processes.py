@@ -20,7 +20,7 @@ from pymavlink import mavutil
 
 from companion.mavlink.events import EventCatalogue, parse_event
 from companion.vehicle_process import VehicleProcess
-from sitl.events import catalogue
+from sitl.autopilot.events import catalogue
 
 _CATALOGUE = EventCatalogue.from_bytes(catalogue())
 
@@ -97,10 +97,10 @@ class SitlProcess(VehicleProcess):
 
 
 class RelayProcess:
-    """``python -m sitl.relay`` between a client and a vehicle; :meth:`stop` returns its counters."""
+    """``python -m sitl.netem.relay`` between a client and a vehicle; :meth:`stop` returns its counters."""
 
     def __init__(self, to: str, *args: str) -> None:
-        cmd = [sys.executable, "-m", "sitl.relay", "--listen", "127.0.0.1:0", "--to", to, *args]
+        cmd = [sys.executable, "-m", "sitl.netem.relay", "--listen", "127.0.0.1:0", "--to", to, *args]
         self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      env=child_env())
         line = self.proc.stdout.readline()  # type: ignore[union-attr]

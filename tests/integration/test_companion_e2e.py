@@ -266,7 +266,7 @@ def test_a_stalled_companion_finds_the_waiting_vehicle_where_it_left_it(sitl, co
     ``--wait-for-setpoints 0.05`` the vehicle stops its clock once the newest setpoint is 50 ms
     (simulated) old: it flies at most 0.05 s on the last setpoint, then waits, repeating its state.
     The companion resumes on the repeated stamp (its clock re-anchored, its controller stepping
-    only the vehicle time that passed, companion/control_time.py) and the square ends within the
+    only the vehicle time that passed, companion/flight/control_time.py) and the square ends within the
     clean flight's bounds (RMS < 5 cm, peak < 15 cm: 0.05 s unattended adds at most
     1/2 * 4 m/s^2 * 0.05^2 = 5 mm). The vehicle reports one wait of about the stall's length, and
     never left offboard."""

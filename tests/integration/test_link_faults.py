@@ -1,5 +1,5 @@
 """Flights over a bad link: the companion and the vehicle as separate processes, a seeded
-impairment relay (sitl/relay.py, its own process) between them, all over UDP on 127.0.0.1.
+impairment relay (sitl/netem/relay.py, its own process) between them, all over UDP on 127.0.0.1.
 
 An independent observer (a pymavlink client talking to the vehicle directly, not through the
 relay) records where the vehicle really went, so a fly-away cannot hide behind a dead link.

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from sitl.relay import SO_TIMESTAMPNS, Impairment, kernel_arrival, main
+from sitl.netem.relay import SO_TIMESTAMPNS, Impairment, kernel_arrival, main
 
 
 class Ends:

@@ -67,7 +67,7 @@ def test_every_parameter_at_both_edges_of_its_range_over_udp(sitl, client, recor
     deliberate fault is set to its maximum for 1 s of vehicle time, then its minimum for 1 s, then
     back: every value is accepted as sent (REAL32 edges included), the vehicle stays upright
     (< 85°) and armed in HOLD, and the process answers throughout."""
-    from sitl.parameters import COMMON_ROWS, PX4_ROWS
+    from sitl.autopilot.parameters import COMMON_ROWS, PX4_ROWS
 
     s = sitl(*WINDY, speedup=SPEEDUP)
     c = client(s.url)

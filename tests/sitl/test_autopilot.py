@@ -5,9 +5,9 @@ import math
 import pytest
 
 from companion.control import quaternion as quat
-from sitl.autopilot import Autopilot, AutopilotParams, LandedState, MavResult, Mode
-from sitl.scenario import Scenario
-from sitl.vehicle import SimVehicle
+from sitl.autopilot.logic import Autopilot, AutopilotParams, LandedState, MavResult, Mode
+from sitl.plant.scenario import Scenario
+from sitl.plant.vehicle import SimVehicle
 
 NAN = math.nan
 
@@ -156,7 +156,7 @@ def guided_airborne(**params):
 
 
 def test_ardupilot_modes_are_copter_numbers():
-    from sitl.autopilot import custom_mode, mode_from_command
+    from sitl.autopilot.logic import custom_mode, mode_from_command
 
     assert custom_mode(Mode.GUIDED, "ardupilot") == 4 and custom_mode(Mode.LAND, "ardupilot") == 9
     assert custom_mode(Mode.TAKEOFF, "ardupilot") == 4  # take-off runs inside GUIDED
@@ -235,3 +235,21 @@ def test_ardupilot_boosts_throttle_by_the_tilt_unless_angle_boost_is_off():
         expected = u * m.thrust_max_n / (math.cos(lean) if boost else 1.0)
         assert ap.setpoint.thrust_n == pytest.approx(expected, rel=1e-3)  # the tilt of one step earlier
         assert (ap.setpoint.thrust_n / (u * m.thrust_max_n) > 1.1) is boost
+
+
+def test_ardupilot_reports_a_stale_hover_throttle_that_it_learns_in_flight():
+    """MOT_THST_HOVER: 7 % above the true hover throttle at boot (as ArduCopter SITL reports its saved
+    0.35), e^-1 of that error left after 10 s airborne; PX4's MPC_THR_HOVER is the model's."""
+    from sitl.autopilot.logic import HOVER_STALE
+
+    ap = guided_airborne(guided_thrust_is_throttle=True, **AS_THE_COMPANION_SETS_IT)
+    m = ap.vehicle.scenario.vehicle
+    true = m.weight_n / m.thrust_max_n
+    flown = ap.airborne_s
+    assert 0.5 < flown < 4.0
+    expected = true * (1 + (HOVER_STALE - 1) * math.exp(-flown / 10.0))
+    assert ap.reported_hover_throttle() == pytest.approx(expected, rel=1e-9)
+    assert make(flavour="ardupilot").reported_hover_throttle() == pytest.approx(1.07 * true, rel=1e-9)
+    run(ap, 10.0)
+    assert ap.reported_hover_throttle() / true - 1 == pytest.approx(0.07 * math.exp(-(flown + 10.0) / 10.0), rel=1e-3)
+    assert make(flavour="px4").reported_hover_throttle() == true

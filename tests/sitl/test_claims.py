@@ -1,4 +1,4 @@
-"""The paper's claims (sitl/claims.py) on the paper's configuration over five seeds, each with
+"""The paper's claims (sitl/lab/claims.py) on the paper's configuration over five seeds, each with
 its broken twin: a deliberately broken variant on which the same check must fail.
 
 A twin flies only what its claim needs (one seed, the shortest flight that holds the segment);
@@ -10,9 +10,10 @@ import dataclasses
 
 import pytest
 
-from sitl.claims import CLAIMS, judge
-from sitl.experiments import Case, ExperimentResult, run_experiment
-from sitl.scenario import Segment, apply_settings, load_scenario
+from sitl.lab.claims import CLAIMS, judge
+from sitl.lab.experiments import run_experiment
+from sitl.lab.results import Case, ExperimentResult
+from sitl.plant.scenario import Segment, apply_settings, load_scenario
 
 pytestmark = pytest.mark.slow
 SEEDS = [1, 2, 3, 4, 5]

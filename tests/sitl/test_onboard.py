@@ -7,7 +7,7 @@ from companion.control import vector as vec
 from companion.control.allocation import wrench_from_rotor_speeds
 from companion.control.outer_loop import AttitudeSetpoint
 from companion.control.params import VehicleParams
-from sitl.onboard import OnboardAttitudeLoop
+from sitl.plant.onboard import OnboardAttitudeLoop
 
 V = VehicleParams()
 DT = 0.001

@@ -24,9 +24,9 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
-from sitl.autopilot import Autopilot, MavResult
-from sitl.parameters import ARDUPILOT_ROWS, COMMON_ROWS, PX4_ROWS, Row, markdown_table
-from sitl.server import MavlinkServer, ServerConfig
+from sitl.autopilot.logic import Autopilot, MavResult
+from sitl.autopilot.parameters import ARDUPILOT_ROWS, COMMON_ROWS, PX4_ROWS, Row, markdown_table
+from sitl.autopilot.server import MavlinkServer, ServerConfig
 from tests.sitl.test_autopilot import airborne, make, run
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -259,7 +259,7 @@ def test_every_row_reads_back_what_it_sets() -> None:
     for flavour, rows in (("px4", PX4_ROWS + COMMON_ROWS), ("ardupilot", ARDUPILOT_ROWS + COMMON_ROWS)):
         ap = make(flavour=flavour)
         s = MavlinkServer(ap, ServerConfig())
-        from sitl.parameters import _Binding
+        from sitl.autopilot.parameters import _Binding
 
         binding = _Binding(ap)
         for row in rows:

@@ -1,10 +1,10 @@
-"""The peer table's rules (sitl.peers) on their own, with wall time passed in."""
+"""The peer table's rules (sitl.autopilot.peers) on their own, with wall time passed in."""
 
 from __future__ import annotations
 
 import math
 
-from sitl.peers import PROTECT_S, Bucket, PeerTable
+from sitl.autopilot.peers import PROTECT_S, Bucket, PeerTable
 
 
 def test_a_churn_only_ever_displaces_itself() -> None:

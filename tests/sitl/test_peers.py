@@ -12,7 +12,7 @@ from collections import Counter
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sitl.server import MAX_PEERS, MavlinkServer, ServerConfig
+from sitl.autopilot.server import MAX_PEERS, MavlinkServer, ServerConfig
 from tests.sitl.test_autopilot import make
 
 CONTROLLER = ("127.0.0.1", 40001)
@@ -104,7 +104,7 @@ def test_a_clients_stream_stops_and_rates_change_only_its_own_streams() -> None:
 def test_a_parameter_list_is_paced_per_client_and_repeated_requests_add_nothing() -> None:
     """Fifty PARAM_REQUEST_LISTs in a burst: nothing is sent from the receive path; the requester
     then gets every parameter exactly once, at most two per plant step and 1,000 per second of wall
-    time (sitl.server.PARAM_VALUES_PER_S), and no other client gets any."""
+    time (sitl.autopilot.server.PARAM_VALUES_PER_S), and no other client gets any."""
     s, wire = server()
     s.datagram_received(heartbeat(), GCS)
     wire.clear()

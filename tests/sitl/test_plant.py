@@ -6,12 +6,12 @@ import numpy as np
 
 from companion.control import quaternion as quat
 from companion.control.params import VehicleParams
-from sitl.airframe import AirframeParams
-from sitl.dynamics import Plant
-from sitl.scenario import Scenario
-from sitl.sensors import Imu, Mocap, SensorParams
-from sitl.simulation import simulate
-from sitl.wind import WindParams
+from sitl.plant.airframe import AirframeParams
+from sitl.plant.dynamics import Plant
+from sitl.plant.scenario import Scenario
+from sitl.plant.sensors import Imu, Mocap, SensorParams
+from sitl.lab.simulation import simulate
+from sitl.plant.wind import WindParams
 
 V = VehicleParams()
 DT = 0.001
@@ -99,7 +99,7 @@ def test_tracking_runs_at_60_hz_with_its_delay_and_differentiates_velocity():
 
 def test_batch_reproduces_single_vehicle_runs():
     """A batch of seeds is the one-vehicle runs stepped together: the same numbers."""
-    from sitl.scenario import load_scenario
+    from sitl.plant.scenario import load_scenario
 
     sc = load_scenario("E3_wind").with_changes(duration_s=2.0)
     batch = simulate(sc, "ism_do", "ism_do", [4, 9])
@@ -114,7 +114,7 @@ def test_heavier_plant_is_seen_as_a_downward_force_by_the_observer():
     """The plant is 30% heavier than the controller's model: the force DO must attribute
     (m - m0) g = 0.3 * 0.63 * 9.81 = 1.85 N downwards to disturbance and hold altitude;
     PD without DO would sag by 1.85 / (m0 K_p) = 1.3 m instead."""
-    from sitl.scenario import ModelError
+    from sitl.plant.scenario import ModelError
 
     sc = Scenario(name="heavy", duration_s=10.0, model_error=ModelError(mass_factor=1.3))
     log = simulate(sc, "pd_do", "ism_do", 1)
@@ -127,7 +127,7 @@ def test_heavier_plant_is_seen_as_a_downward_force_by_the_observer():
 
 def test_batch_reproduces_single_vehicle_runs_for_indi_and_the_aibc_observer():
     """INDI (both loops) and the AIBC's velocity observer are written once for floats and arrays."""
-    from sitl.scenario import load_scenario
+    from sitl.plant.scenario import load_scenario
 
     sc = load_scenario("E3_wind").with_changes(duration_s=1.5)
     for position, attitude in (("indi", "indi"), ("aibc", "ism_do")):

@@ -6,7 +6,7 @@ import math
 import pytest
 
 from companion.config import ConfigError
-from sitl.sweep import fly_batch, load_sweep, plan, run_sweep
+from sitl.lab.sweep import fly_batch, load_sweep, plan, run_sweep
 
 SMALL = """name = "small"
 scenario = "E3_wind"

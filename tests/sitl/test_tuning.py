@@ -5,8 +5,8 @@ import json
 
 import numpy as np
 
-from sitl.scenario import Segment, load_scenario
-from sitl.tuning import Candidate, evaluate, main, stability_margin, tune
+from sitl.plant.scenario import Segment, load_scenario
+from sitl.lab.tuning import Candidate, evaluate, main, stability_margin, tune
 
 WINDOW = Segment("tuning", 1.0, 3.0)
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sitl.wind import TurbulenceParams, Wind, WindParams, dryden_low_altitude, dryden_psd
+from sitl.plant.wind import TurbulenceParams, Wind, WindParams, dryden_low_altitude, dryden_psd
 
 DT = 0.01  # the filters are exact at any step; 100 Hz keeps the test short
 

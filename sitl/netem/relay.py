@@ -38,7 +38,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Sequence
 
-from .percentiles import percentiles_ms
+from ..percentiles import percentiles_ms
 
 __all__ = ["Impairment", "Outage", "Relay", "SO_TIMESTAMPNS", "kernel_arrival", "main"]
 

@@ -122,9 +122,6 @@ class Px4Sih:
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
 
-    def ulogs(self) -> list[Path]:
-        return sorted(self.workdir.rglob("*.ulg")) if self.workdir else []
-
     def stop(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
@@ -172,11 +169,6 @@ class ArduCopterSitl:
     @property
     def url(self) -> str:
         return f"tcp://127.0.0.1:{self.tcp_port}"
-
-    @property
-    def udp_url(self) -> str:
-        assert self.udp_port is not None
-        return f"udpin://127.0.0.1:{self.udp_port}"
 
     def start(self) -> ArduCopterSitl:
         self.workdir = Path(tempfile.mkdtemp(prefix=f"arducopter-{self.instance}-"))

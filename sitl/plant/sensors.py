@@ -92,8 +92,6 @@ class Mocap:
         self._av = lowpass_alpha(2.0 * math.pi * params.velocity_filter_hz, self.period_s)
         self._aa = lowpass_alpha(2.0 * math.pi * params.accel_filter_hz, self.period_s)
         self.latest = MocapSample(0.0, state.pos_ned_m, ZERO3, ZERO3, state.q)
-        self._raw_vel_prev: Vec3 = ZERO3
-        self._vel_prev: Vec3 = ZERO3
         self._pos_prev: Vec3 | None = None
 
     def update(self, t_s: float, state: RigidBodyState) -> MocapSample | None:

@@ -13,7 +13,6 @@ rotor plane, 3 cm above the centre of mass, so gusts also disturb the attitude l
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from companion.control.vector import Vec3
@@ -39,11 +38,3 @@ class AirframeParams:
     """centre of mass relative to the rotors' geometric centre, FRD (a badly placed battery)"""
     ground_z_m: float = 0.0
     """NED height of the ground; the vehicle rests on it when thrust is below weight"""
-
-    def drag_at(self, airspeed_m_s: float) -> float:
-        """Horizontal drag force [N] at a horizontal airspeed, level attitude (for calibration)."""
-        return self.drag_linear_n_s_m[0] * airspeed_m_s + self.drag_quadratic_n_s2_m2 * airspeed_m_s**2
-
-    @staticmethod
-    def hover_tilt_deg(drag_n: float, weight_n: float) -> float:
-        return math.degrees(math.atan2(drag_n, weight_n))

@@ -29,12 +29,12 @@ from companion.control.attitude import ATTITUDE_CONTROLLERS
 from companion.mavlink.signing import SigningError
 from companion.mavlink.signing_options import add_signing_options, signing_key
 
-from .autopilot import Autopilot, AutopilotParams
+from ..plant.scenario import Scenario, load_scenario
+from ..plant.vehicle import SimVehicle
+from .logic import Autopilot, AutopilotParams
 from .parameters import out_of_range
-from .scenario import Scenario, load_scenario
 from .server import MavlinkServer, ServerConfig
 from .telemetry import GeoOrigin
-from .vehicle import SimVehicle
 
 __all__ = ["main", "build", "parse_address"]
 

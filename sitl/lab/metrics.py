@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from companion.control import quaternion as quat
 
-from .scenario import Segment
+from ..plant.scenario import Segment
 from .simulation import FlightLog
 
 __all__ = ["SegmentMetrics", "segment_metrics", "flight_metrics", "tilt_deg", "rate_cmd_deg_s", "euler_deg",

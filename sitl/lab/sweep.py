@@ -1,6 +1,6 @@
 """Monte-Carlo sweeps: many offline flights, one tidy table.
 
-    sitl-sweep sitl/sweeps/e3_wind.toml                          # all local cores
+    sitl-sweep sitl/lab/sweeps/e3_wind.toml                      # all local cores
     sitl-sweep my_sweep.toml --scheduler tcp://10.0.0.5:8786      # a Dask cluster
     sitl-sweep my_sweep.toml --retry-failed                       # re-run only what failed
 
@@ -57,8 +57,8 @@ from companion.config import ConfigError, load_toml, locate
 from companion.control.attitude import ATTITUDE_CONTROLLERS
 from companion.control.position import POSITION_CONTROLLERS
 
+from ..plant.scenario import Scenario, Segment, load_scenario
 from .metrics import SegmentMetrics, segment_metrics
-from .scenario import Scenario, Segment, load_scenario
 from .simulation import simulate
 
 __all__ = ["SweepSpec", "Task", "Member", "stack_gains", "NAMED_PARAMETERS", "load_sweep", "apply_parameters",
@@ -593,7 +593,7 @@ def summary(spec: SweepSpec, table: Path) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="sitl-sweep", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("sweep", help="sweep file, or a bundled name (sitl/sweeps/)")
+    ap.add_argument("sweep", help="sweep file, or a bundled name (sitl/lab/sweeps/)")
     ap.add_argument("--out", type=Path, default=Path("sweeps"), help="output folder (default: sweeps)")
     ap.add_argument("--jobs", type=int, help="local worker processes (default: all cores)")
     ap.add_argument("--scheduler", help="address of a Dask distributed scheduler, e.g. tcp://host:8786")

@@ -6,8 +6,8 @@ a mass error or a weak motor take effect at the next plant step. Names follow PX
 has the parameter (COM_OF_LOSS_T, MIS_TAKEOFF_ALT, ...); SIM_* are the simulation's own.
 
 One declarative table (:data:`PX4_ROWS`, :data:`ARDUPILOT_ROWS`, :data:`COMMON_ROWS`): each row
-names the field it sets (of the autopilot's :class:`~sitl.autopilot.AutopilotParams`, of the
-live :class:`~sitl.scenario.Scenario`, or of the vehicle), its range and its unit. The ranges are
+names the field it sets (of the autopilot's :class:`~sitl.autopilot.logic.AutopilotParams`, of the
+live :class:`~sitl.plant.scenario.Scenario`, or of the vehicle), its range and its unit. The ranges are
 what flies: any value in range, alone or with any others in range, leaves the hovering vehicle
 upright (``tests/sitl/test_parameters.py`` sets them all, edges included, in flight), except the
 rows marked as deliberate faults (a dead motor, a failed sensor), which end in a defined failsafe.
@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator
 
-from .autopilot import Autopilot, Severity
+from .logic import Autopilot, Severity
 
 __all__ = ["Row", "Param", "ParamTable", "build_parameters", "markdown_table", "PX4_ROWS", "ARDUPILOT_ROWS",
            "COMMON_ROWS", "ATTITUDE_KINDS"]
@@ -88,7 +88,8 @@ ARDUPILOT_ROWS: tuple[Row, ...] = (
     Row("ATC_INPUT_TC", "autopilot.input_tc_s", 0.0, 1.0, "s", "time constant of that shaping"),
     Row("ATC_ANGLE_BOOST", "autopilot.angle_boost", 0.0, 1.0, "", "1: throttle divided by the cosine of the "
         "tilt", integer=True),
-    Row("MOT_THST_HOVER", "derived.hover_thrust", 0.0, 1.0, "", "hover throttle, normalised", read_only=True),
+    Row("MOT_THST_HOVER", "derived.hover_thrust", 0.0, 1.0, "", "hover throttle, normalised: 7 % high at boot, "
+        "learnt in flight (10 s time constant)", read_only=True),
 )
 
 COMMON_ROWS: tuple[Row, ...] = (
@@ -231,7 +232,6 @@ class _Binding:
     def __init__(self, ap: Autopilot) -> None:
         self.ap = ap
         self.v = ap.vehicle
-        self.hover = self.v.scenario.vehicle.weight_n / self.v.scenario.vehicle.thrust_max_n
 
     def get(self, row: Row) -> float:
         root, *path = row.field.split(".")
@@ -254,7 +254,7 @@ class _Binding:
             return 0.0
         if path == ["seed"]:
             return float(v.seeds if isinstance(v.seeds, int) else v.seeds[0])
-        return self.hover
+        return ap.reported_hover_throttle()
 
     def setter(self, row: Row) -> Callable[[float], None] | None:
         if row.read_only:

@@ -5,7 +5,7 @@
 - **Numerical fault.** An exception inside the step, or a non-finite plant state after it (a NaN
   or an infinity anywhere in position, velocity, attitude or rates), is contained: the world is
   put back to the last finite state, at rest; the flight is terminated (motors off, disarmed,
-  arming refused until restart: :meth:`~sitl.autopilot.Autopilot.terminate`) with a CRITICAL
+  arming refused until restart: :meth:`~sitl.autopilot.logic.Autopilot.terminate`) with a CRITICAL
   STATUSTEXT naming the fault; and the world **halts**: from then on the clock runs and the
   vehicle keeps answering (heartbeat, telemetry of the frozen state, parameters, commands) but no
   physics is stepped, since whatever produced the fault would produce it again.
@@ -26,8 +26,8 @@ import math
 
 from companion.control.vector import ZERO3
 
-from .autopilot import Autopilot, Severity
-from .sensors import ImuSample
+from ..plant.sensors import ImuSample
+from .logic import Autopilot, Severity
 
 __all__ = ["StepGuard", "LOSS_OF_CONTROL_RAD", "LOSS_OF_CONTROL_S"]
 

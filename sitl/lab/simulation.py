@@ -21,8 +21,8 @@ from companion.control import quaternion as quat
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
 from companion.control.trajectory import PositionReference, ReferenceFilter
 
-from .scenario import Scenario
-from .vehicle import SimVehicle
+from ..plant.scenario import Scenario
+from ..plant.vehicle import SimVehicle
 
 __all__ = ["LOG_COLUMNS", "FlightLog", "Simulation", "simulate"]
 
@@ -103,7 +103,7 @@ def _scenario_of_vehicle(sc: Scenario, i: int) -> Scenario:
 
 
 class Simulation:
-    """A :class:`~sitl.vehicle.SimVehicle` flown by the position loop of the control core."""
+    """A :class:`~sitl.plant.vehicle.SimVehicle` flown by the position loop of the control core."""
 
     def __init__(self, scenario: Scenario, position: str, attitude: str, seeds: int | Sequence[int]) -> None:
         self.scenario = sc = scenario

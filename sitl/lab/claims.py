@@ -1,7 +1,7 @@
 """The paper's claims (section V) as checks that can fail, judged on an experiment's result.
 
 A :class:`Claim` names its scenario, quotes what the paper says, and judges an
-:class:`~sitl.experiments.ExperimentResult` of any number of seeds: it holds only if it holds in
+:class:`~sitl.lab.results.ExperimentResult` of any number of seeds: it holds only if it holds in
 *every* seed, or, for the box-plot claims of Fig. 8, for the median over seeds, as the paper's
 figure shows. Each check also tests that what it compares against is what it claims to be (a
 baseline that does not behave as the PID the paper specifies fails the claim, instead of making
@@ -20,7 +20,7 @@ from typing import Callable
 
 import numpy as np
 
-from .experiments import ExperimentResult
+from .results import ExperimentResult
 
 __all__ = ["Verdict", "Claim", "CLAIMS", "judge", "claims_for"]
 
@@ -69,10 +69,6 @@ def _per_seed(result: ExperimentResult, field: str, segment: str, position: str,
 
 def _median(result: ExperimentResult, field: str, segment: str, position: str, attitude: str) -> float:
     return float(np.median(_per_seed(result, field, segment, position, attitude)))
-
-
-def _fmt(xs: list[float], unit: str = "") -> str:
-    return "[" + ", ".join(f"{x:.3g}" for x in xs) + "]" + unit
 
 
 # --- E1, Fig. 6 ------------------------------------------------------------------------------

@@ -75,7 +75,6 @@ class OnboardAttitudeLoop:
     """the firmware's nominal vehicle (J0, rotor constants)"""
     command_levels: int = 256
     torque_applied_nm: Vec3 = ZERO3
-    thrust_applied_n: Real = 0.0
     rotor_cmd_rad_s: Rotors4 = field(default=(0.0, 0.0, 0.0, 0.0))
 
     def __post_init__(self) -> None:
@@ -93,7 +92,6 @@ class OnboardAttitudeLoop:
     def reset(self) -> None:
         self.controller.reset()
         self.torque_applied_nm = ZERO3
-        self.thrust_applied_n = 0.0
 
     def quantise_all(self, w_sq: Rotors4) -> Rotors4:
         """Rotor speed commands [rad/s] for squared speeds: clipped to range, then quantised."""
@@ -112,13 +110,12 @@ class OnboardAttitudeLoop:
         tau = self.controller.update(q, omega_rad_s, sp.q_d, sp.omega_d_rad_s, self.torque_applied_nm, dt_s,
                                      sp.omega_d_dot_rad_s2)
         cmd = self.quantise_all(rotor_speeds_sq_for(tau, sp.thrust_n, self.vehicle))
-        self.torque_applied_nm, self.thrust_applied_n = wrench_from_rotor_speeds(cmd, self.vehicle)
+        self.torque_applied_nm = wrench_from_rotor_speeds(cmd, self.vehicle)[0]
         self.rotor_cmd_rad_s = cmd
         return cmd
 
     def stop(self) -> Rotors4:
         """Motors off (disarmed): nothing applied, the observers see zero torque."""
         self.torque_applied_nm = ZERO3
-        self.thrust_applied_n = 0.0
         self.rotor_cmd_rad_s = (0.0, 0.0, 0.0, 0.0)
         return self.rotor_cmd_rad_s

@@ -2,7 +2,7 @@
 
     sitl-experiments all --out results          # E1-E5
     sitl-experiments E1_step_force E5_suspended_weight --jobs 2
-    sitl-experiments sitl/scenarios/E3_wind.toml --seeds 100
+    sitl-experiments sitl/plant/scenarios/E3_wind.toml --seeds 100
     sitl-experiments E3_calm --set position.force_source=measured --out results/measured
 
 Per scenario, in ``OUT/<name>/``: one gzipped CSV time series per run (``runs/``), a metrics
@@ -20,17 +20,18 @@ import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Sequence
 
 import numpy as np
 
+from ..plant.scenario import SCENARIO_DIR, Scenario, apply_settings, load_scenario, parse_setting
+from .claims import claims_for, judge
 from .metrics import SegmentMetrics, flight_metrics
-from .scenario import SCENARIO_DIR, Scenario, apply_settings, load_scenario, parse_setting
+from .results import Case, ExperimentResult
 from .simulation import FlightLog, simulate
 
-__all__ = ["Case", "ExperimentResult", "run_experiment", "main", "PAPER_EXPERIMENTS"]
+__all__ = ["run_experiment", "main", "PAPER_EXPERIMENTS"]
 
 PAPER_EXPERIMENTS = (
     "E1_step_force",
@@ -52,41 +53,6 @@ SUMMARY_FIELDS = (
     "steady_force_estimate_n",
     "rms_force_estimate_error_n",
 )
-
-
-@dataclass(frozen=True)
-class Case:
-    position: str
-    attitude: str
-    seed: int
-
-    @property
-    def key(self) -> str:
-        return f"{self.position}__{self.attitude}__seed{self.seed}"
-
-
-@dataclass
-class ExperimentResult:
-    scenario: Scenario
-    metrics: dict[Case, list[SegmentMetrics]] = field(default_factory=dict)
-    logs: dict[Case, FlightLog] = field(default_factory=dict)
-    """flight logs kept for plotting: the first seed of every combination"""
-    figure: Path | None = None
-
-    def rows(self) -> list[dict[str, object]]:
-        out: list[dict[str, object]] = []
-        for case, segs in self.metrics.items():
-            for m in segs:
-                out.append({"position": case.position, "attitude": case.attitude, "seed": case.seed, **m.as_row()})
-        return out
-
-    def values(self, field_name: str, segment: str | None = None) -> dict[tuple[str, str], list[float]]:
-        """A metric over seeds per (position, attitude), for one segment (default: the first)."""
-        out: dict[tuple[str, str], list[float]] = {}
-        for case, segs in self.metrics.items():
-            m = next(s for s in segs if segment is None or s.segment == segment)
-            out.setdefault((case.position, case.attitude), []).append(float(getattr(m, field_name)))
-        return out
 
 
 def cases_of(sc: Scenario, seeds: Sequence[int] | None = None) -> list[Case]:
@@ -202,9 +168,7 @@ def summary_table(result: ExperimentResult) -> str:
 
 
 def claims_table(result: ExperimentResult) -> list[str]:
-    """The paper's claims about this scenario (sitl/claims.py), judged on this result."""
-    from .claims import claims_for, judge
-
+    """The paper's claims about this scenario (sitl/lab/claims.py), judged on this result."""
     out = []
     for c in claims_for(result.scenario.name):
         try:

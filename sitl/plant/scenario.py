@@ -1,7 +1,7 @@
 """Scenarios: everything that defines a simulated flight, as data loaded from TOML.
 
 The same file drives the offline experiments (E1-E5) and the simulated MAVLink vehicle's
-disturbances. Tables are named after the fields below; see ``sitl/scenarios/*.toml``.
+disturbances. Tables are named after the fields below; see ``sitl/plant/scenarios/*.toml``.
 The controller's model is ``vehicle``; the plant is ``vehicle`` with ``model_error`` applied.
 """
 

@@ -208,6 +208,3 @@ class SimVehicle:
     @property
     def hover_thrust_n(self) -> Real:
         return self.scenario.vehicle.weight_n
-
-    def replace_scenario(self, **changes: object) -> None:
-        self.scenario = dataclasses.replace(self.scenario, **changes)  # type: ignore[arg-type]

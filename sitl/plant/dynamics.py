@@ -51,7 +51,6 @@ class Wrench(NamedTuple):
     specific_force_body_m_s2: Vec3
     """(r'' - g e3) in body axes: what an ideal accelerometer reads"""
     thrust_n: Real
-    torque_rotors_nm: Vec3
     disturbance_force_ned_n: Vec3
     """true lumped h_f: drag + external force"""
     disturbance_torque_nm: Vec3
@@ -164,13 +163,12 @@ class Plant:
         )
         q = quat.integrate(q, om, dt_s)
         w = (w1, w2, w3, w4)
-        torque_rot = (t_rx, t_ry, t_rz)
 
         if type(pos[2]) is not float or pos[2] >= af.ground_z_m:
             pos, vel, q, om, sf_body = self._ground_contact(pos, vel, q, om, sf_body, thrust)
         # tuple.__new__ skips the NamedTuples' Python-level __new__ (a measurable cost at 1 kHz)
         self.state = _new(RigidBodyState, (pos, vel, q, om, w))
-        return _new(Wrench, (sf_body, thrust, torque_rot, (hx, hy, hz), torque_dist))
+        return _new(Wrench, (sf_body, thrust, (hx, hy, hz), torque_dist))
 
     def _ground_contact(
         self, pos: Vec3, vel: Vec3, q: Quat, om: Vec3, sf_body: Vec3, thrust: Real

@@ -35,8 +35,8 @@ import numpy as np
 
 from companion.control.params import AttitudeGains, VehicleParams, attitude_stability_margin
 
+from ..plant.scenario import Scenario, Segment, load_scenario
 from .metrics import segment_metrics
-from .scenario import Scenario, Segment, load_scenario
 from .simulation import simulate
 
 __all__ = ["GAINS", "Candidate", "stability_margin", "evaluate", "tune", "main"]

@@ -1,7 +1,7 @@
 """The simulated vehicle's autopilot: PX4-like modes, arming, take-off, landing, offboard, failsafe.
 
-Pure logic over a :class:`~sitl.vehicle.SimVehicle`; no sockets, no clock. The MAVLink edge
-(:mod:`sitl.mavlink_server`) decodes messages into the calls below and encodes the state back.
+Pure logic over a :class:`~sitl.plant.vehicle.SimVehicle`; no sockets, no clock. The MAVLink edge
+(:mod:`sitl.autopilot.server`) decodes messages into the calls below and encodes the state back.
 
 Rules, as PX4 has them (../shared/MAVLINK.md):
 
@@ -34,7 +34,7 @@ from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, Positio
 from companion.control.trajectory import ReferenceFilter
 from companion.control.vector import ZERO3, Vec3
 
-from .vehicle import SimVehicle
+from ..plant.vehicle import SimVehicle
 
 __all__ = [
     "Mode",
@@ -175,6 +175,12 @@ class AutopilotParams:
     """ArduPilot GUID_OPTIONS bit 3: thrust is throttle (else a climb rate, 0.5 = hold altitude)"""
 
 
+HOVER_STALE = 1.07
+"""ArduCopter's MOT_THST_HOVER at boot over the throttle that really hovers (seen on its SITL)"""
+HOVER_LEARN_TC_S = 10.0
+"""the time constant of ArduCopter's hover-throttle learning (AP_MOTORS_THST_HOVER_TC)"""
+
+
 def _angle_boost(q: tuple) -> float:
     """ArduPilot's throttle boost at the vehicle's tilt: 1 / cos(tilt), the cosine floored at 0.1,
     fading to 0 past 84 deg (get_throttle_boosted)."""
@@ -232,7 +238,6 @@ class Autopilot:
         self.landed = True
         self.arm_time = 0.0
         self.home: Vec3 = vehicle.state.pos_ned_m
-        self.home_yaw = 0.0
         self.lifted_off = False
         self.touchdown_time: float | None = None
         self.failsafe: str | None = None
@@ -346,7 +351,6 @@ class Autopilot:
             self.arm_time = self.t
             self.lifted_off = False
             self.home = self.vehicle.tracked.pos_ned_m
-            self.home_yaw = float(quat.to_euler(self.vehicle.estimator.q)[2])
             self.vehicle.motors_on = True
             self._reset_controllers()
             self._say(Severity.INFO, "Armed")
@@ -365,7 +369,7 @@ class Autopilot:
 
     def terminate(self, reason: str) -> None:
         """Flight termination, PX4's answer to a failure it cannot fly through (its failure
-        detector) and ours to a numerical fault (sitl.guard): motors off where it is, disarmed,
+        detector) and ours to a numerical fault (sitl.autopilot.guard): motors off where it is, disarmed,
         the reason latched."""
         self.terminated = reason
         self._say(Severity.CRITICAL, f"{reason}: motors off")
@@ -598,7 +602,22 @@ class Autopilot:
             self.setpoint = self._mode_setpoint()
         self.vehicle.step(self.setpoint)
         self._update_landed()
+        if self.armed and not self.landed:
+            self.airborne_s += self.dt
         self._k += 1
+
+    airborne_s = 0.0
+    """vehicle seconds flown (armed, off the ground) since boot"""
+
+    def reported_hover_throttle(self) -> float:
+        """MPC_THR_HOVER / MOT_THST_HOVER as the autopilot reports it. PX4's is the model's. ArduCopter's
+        is a learnt value (MOT_HOVER_LEARN 2): at boot the saved one, 7 % off on its SITL
+        (HOVER_STALE), converging to the truth with a 10 s time constant of flight (HOVER_LEARN_TC_S)."""
+        m = self.vehicle.scenario.vehicle
+        true = m.weight_n / m.thrust_max_n
+        if not self.ardupilot:
+            return true
+        return true * (1.0 + (HOVER_STALE - 1.0) * math.exp(-self.airborne_s / HOVER_LEARN_TC_S))
 
     def _sensor_failsafes(self) -> None:
         """A failed IMU or lost position in the air: say why once, and land (blind if need be)."""

@@ -8,14 +8,15 @@ Datagrams are handled between steps as they arrive: each is parsed on its own (a
 packet cannot swallow the next one), every message is checked for its target, and anything
 malformed, oversized, mis-addressed or out of range is dropped and counted — never raised.
 
-Clients do not interfere (:mod:`sitl.peers`): each has its own stream rates, its own paced
+Clients do not interfere (:mod:`sitl.autopilot.peers`): each has its own stream rates, its own paced
 parameter list and its own request budget; answers go to the client that asked (STATUSTEXT,
 HEARTBEAT-rate streams and parameter changes go to all); a flood from one address is dropped
 unparsed beyond its budget; the controller's address is never evicted from the peer table.
 
-Incoming wire messages become :class:`~sitl.autopilot.Autopilot` calls here; outgoing state
-becomes messages in :mod:`sitl.telemetry`. Each plant step runs under :class:`~sitl.guard.StepGuard`:
-a numerical fault or a loss of control ends in a defined failsafe, never in the loop's death.
+Incoming wire messages become :class:`~sitl.autopilot.logic.Autopilot` calls here; outgoing state
+becomes messages in :mod:`sitl.autopilot.telemetry`. Each plant step runs under
+:class:`~sitl.autopilot.guard.StepGuard`: a numerical fault or a loss of control ends in a defined
+failsafe, never in the loop's death.
 """
 
 from __future__ import annotations
@@ -36,12 +37,12 @@ from companion.mavlink.signing import SignatureCheck, enable_signing, is_signed
 from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
 
-from .autopilot import Autopilot, MavResult, Severity
+from ..percentiles import percentiles_ms
 from .events import catalogue, event_id
 from .guard import StepGuard
+from .logic import Autopilot, MavResult, Severity
 from .parameters import ParamTable, build_parameters
 from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
-from .percentiles import percentiles_ms
 from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
 
 __all__ = ["ServerConfig", "MavlinkServer", "MAX_PEERS"]
@@ -60,7 +61,7 @@ whatever the speed-up and however many clients ask"""
 MAX_STREAM_HZ = 250.0
 """no stream faster than this (simulated Hz; a faster SET_MESSAGE_INTERVAL is clamped to it)"""
 NEWCOMER_STREAMS_PER_SIM_S = 400.0
-"""stream messages per simulated second shared by all peers that are not protected (sitl.peers:
+"""stream messages per simulated second shared by all peers that are not protected (sitl.autopilot.peers:
 not configured, not the controller, fewer than 3 datagrams or silent for 5 s); the protected get
 all of theirs. A churn of addresses, each a peer with the default streams (380/s), would otherwise
 cost the vehicle one send per message per address"""
@@ -72,14 +73,13 @@ DATAGRAMS_PER_SIM_S = 200.0
 sends about 110: setpoints at 100 Hz and a heartbeat); the controller's address is exempt"""
 REQUESTS = frozenset({"COMMAND_LONG", "COMMAND_INT", "PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET",
                       "PING", "TIMESYNC", "REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST"})
-"""messages that cost an answer: each client's are limited (sitl.peers.REQUESTS_PER_S)"""
+"""messages that cost an answer: each client's are limited (sitl.autopilot.peers.REQUESTS_PER_S)"""
 
 # commands answered by the server itself (the rest go to the autopilot)
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_CMD_REQUEST_MESSAGE = 512
 MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
 MAV_CMD_GET_HOME_POSITION = 410
-MAV_CMD_REQUEST_PROTOCOL_VERSION = 519
 
 
 @dataclass
@@ -155,7 +155,7 @@ class MavlinkServer:
         # ArduCopter sends only HEARTBEAT (and STATUSTEXT) until a client asks for streams
         rates = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: 1.0} if ap.ardupilot else cfg.rates_hz
         self.peers = PeerTable({m: 1.0 / hz for m, hz in rates.items() if hz > 0}, cfg.peers)
-        """who gets telemetry, each at its own rates (sitl.peers)"""
+        """who gets telemetry, each at its own rates (sitl.autopilot.peers)"""
         self.inflow = InflowGuard(DATAGRAMS_PER_SIM_S * max(cfg.speedup, 1.0), DATAGRAMS_PER_SIM_S)
         self._non_peer_requests = Peer(("", 0), {}, {}).requests
         """one request budget shared by every address the full peer table refused"""
