@@ -370,7 +370,7 @@ class WindState(NamedTuple):
 
 def wind_const(params: object, seed: int, dt_s: float) -> WindConst:
     """The Dryden forming filters of :mod:`sitl.plant.wind` for ``params``, with the vehicle's keys."""
-    from sitl.wind import _first_order, _second_order, dryden_low_altitude
+    from .wind import _first_order, _second_order, dryden_low_altitude
 
     p = params
     tp = p.turbulence  # type: ignore[attr-defined]
@@ -606,8 +606,9 @@ def vehicle_step(c: VehicleConst, st: VehicleState, sp: AttitudeSetpoint, motors
     bias = b
     if fresh:
         q_est, bias = estimator_correct(c, q_est, bias, mocap.latest.q)
-    return VehicleState(st.k + 1, t, body, forces, wind_state, wind, gyro, sf, (s[0] + sf[0], s[1] + sf[1], s[2] + sf[2]),
-                        st.sf_count + 1, mocap, q_est, bias, omega, attitude, torque_applied, thrust_applied, cmd)
+    return VehicleState(st.k + 1, t, body, forces, wind_state, wind, gyro, sf,
+                        (s[0] + sf[0], s[1] + sf[1], s[2] + sf[2]), st.sf_count + 1,
+                        mocap, q_est, bias, omega, attitude, torque_applied, thrust_applied, cmd)
 
 
 @jitable
@@ -757,9 +758,8 @@ def _log_row(out: NDArray[np.float64], vc: VehicleConst, st: VehicleState, ref: 
         out[i] = vals[i]
 
 
-
 def _example() -> FlightConst:
-    from sitl.scenario import Scenario
+    from .scenario import Scenario
 
     return flight_const(Scenario(name="codec"), "ism_do", "ism_do", 1)
 
