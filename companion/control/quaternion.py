@@ -92,7 +92,7 @@ def conj(q: Quat) -> Quat:
 
 @jitable
 def norm(q: Quat) -> Real:
-    return (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) ** 0.5
+    return sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
 
 
 @jitable
@@ -182,7 +182,7 @@ def _sin_half_over_angle(angle: Real) -> Real:
 @jitable
 def exp(phi: Vec3) -> Quat:
     """Unit quaternion of the rotation vector ``phi`` [rad]."""
-    angle = (phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]) ** 0.5
+    angle = sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
     if is_scalar(angle):  # one vehicle: skip the element-wise branches
         kf = 0.5 - angle * angle / 48.0 if angle < 1e-4 else math.sin(0.5 * angle) / angle
         return (math.cos(0.5 * angle), kf * phi[0], kf * phi[1], kf * phi[2])
@@ -264,7 +264,7 @@ def integrate(q: Quat, omega_body_rad_s: Vec3, dt_s: Real) -> Quat:
     Renormalised every call so that the quaternion stays on the unit sphere however long it runs.
     """
     px, py, pz = omega_body_rad_s[0] * dt_s, omega_body_rad_s[1] * dt_s, omega_body_rad_s[2] * dt_s
-    angle = (px * px + py * py + pz * pz) ** 0.5
+    angle = sqrt(px * px + py * py + pz * pz)
     dw: Real
     dx: Real
     dy: Real
@@ -279,5 +279,5 @@ def integrate(q: Quat, omega_body_rad_s: Vec3, dt_s: Real) -> Quat:
     rx = qw * dx + qx * dw + qy * dz - qz * dy
     ry = qw * dy - qx * dz + qy * dw + qz * dx
     rz = qw * dz + qx * dy - qy * dx + qz * dw
-    n = (rw * rw + rx * rx + ry * ry + rz * rz) ** 0.5
+    n = sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
     return (rw / n, rx / n, ry / n, rz / n)

@@ -212,8 +212,9 @@ def cross(a: Vec3, b: Vec3) -> Vec3:
 
 @jitable
 def norm(a: Vec3) -> Real:
-    # ** 0.5 is sqrt for floats and arrays alike, without a Python-level dispatch
-    return (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]) ** 0.5
+    # sqrt, not ** 0.5: CPython computes float ** 0.5 with pow(), which is off by one ulp now and
+    # then, where compiled code and NumPy take the correctly rounded square root
+    return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
 @jitable

@@ -25,6 +25,7 @@ from companion.control.vector import (
     exp,
     mat_t_vec,
     matvec,
+    sqrt,
     where,
 )
 
@@ -77,7 +78,7 @@ class Plant:
         vehicle: VehicleParams, airframe: AirframeParams, pos_ned_m: Vec3, yaw_rad: Real = 0.0, hovering: bool = True
     ) -> Plant:
         """A plant at ``pos_ned_m``, level, rotors at hover speed (or stopped on the ground)."""
-        w = (vehicle.weight_n / (4.0 * vehicle.k_thrust_n_s2)) ** 0.5 if hovering else 0.0
+        w = sqrt(vehicle.weight_n / (4.0 * vehicle.k_thrust_n_s2)) if hovering else 0.0
         state = RigidBodyState(pos_ned_m, ZERO3, quat.from_yaw(yaw_rad), ZERO3, (w, w, w, w))
         return Plant(vehicle, airframe, state)
 
@@ -115,7 +116,7 @@ class Plant:
         vx, vy, vz = s.vel_ned_m_s
         ux, uy, uz = wind_ned_m_s
         bx, by, bz = mat_t_vec(rot, (vx - ux, vy - uy, vz - uz))  # air-relative velocity, body
-        airspeed = (bx * bx + by * by + bz * bz) ** 0.5
+        airspeed = sqrt(bx * bx + by * by + bz * bz)
         dlx, dly, dlz = af.drag_linear_n_s_m
         dq = af.drag_quadratic_n_s2_m2 * airspeed
         dx, dy, dz = -(dlx + dq) * bx, -(dly + dq) * by, -(dlz + dq) * bz  # drag, body

@@ -99,7 +99,7 @@ class OnboardAttitudeLoop:
         if type(w_sq[0]) is float:  # one vehicle: plain floats, several times faster
             out = []
             for x in w_sq:
-                w = x**0.5 if x > 0.0 else 0.0
+                w = math.sqrt(x) if x > 0.0 else 0.0
                 w = lo if w < lo else (hi if w > hi else w)
                 out.append(lo + round((w - lo) / step) * step)
             return (out[0], out[1], out[2], out[3])
