@@ -4,9 +4,11 @@ A batch of vehicles differs in a few numbers (seeds, gains) inside constants tha
 NamedTuples. Handing compiled code a list of such tuples costs a container type that numba
 compiles anew in every process (seconds); a float64 array of one row per vehicle costs nothing.
 :func:`codec` writes, for the structure of one example tuple, the two functions that cross:
-``pack(value) -> list[float]`` in Python and ``unpack(row, template)`` (jitable) rebuilding the
+``pack(value) -> list[float]`` in Python and ``unpack(row, a0, a1, ...)`` (jitable) rebuilding the
 tuple, with integers and booleans restored exactly (float64 holds every integer below 2^53) and
-array fields taken from ``template`` (arrays are shared by the whole batch).
+the array fields given as arguments, in the order ``arrays(value)`` lists them (arrays are shared by
+the whole batch). The arrays travel as plain arguments, not inside a tuple, because numba's
+parallel loops cannot take a tuple holding arrays into the loop body.
 """
 
 from __future__ import annotations
@@ -22,8 +24,11 @@ __all__ = ["Codec", "codec"]
 
 class Codec(NamedTuple):
     size: int
+    """numbers per row"""
     pack: Callable[[Any], list[float]]
     unpack: Callable[..., Any]
+    arrays: Callable[[Any], tuple[Any, ...]]
+    """the array fields of a value, in the order ``unpack`` takes them"""
 
 
 _CACHE: dict[tuple[Any, ...], Codec] = {}
@@ -49,10 +54,12 @@ def codec(example: Any) -> Codec:
         return _CACHE[shape]
     names: dict[str, Any] = {}
     index = [0]
+    n_arrays = [0]
 
     def build(s: Any, path: str) -> str:
         if s == "array":
-            return path.replace("value", "template", 1)
+            n_arrays[0] += 1
+            return f"a{n_arrays[0] - 1}"
         if s == "bool":
             index[0] += 1
             return f"(row[{index[0] - 1}] != 0.0)"
@@ -71,7 +78,8 @@ def codec(example: Any) -> Codec:
         return f"{name}(" + ", ".join(parts) + ")"
 
     expr = build(shape, "value")
-    src = f"def unpack(row, template):\n    return {expr}\n"
+    params = "".join(f", a{i}" for i in range(n_arrays[0]))
+    src = f"def unpack(row{params}):\n    return {expr}\n"
     scope: dict[str, Any] = dict(names)
     exec(compile(src, f"<codec of {type(example).__name__}>", "exec"), scope)  # noqa: S102
     unpack = jitable(scope["unpack"])
@@ -91,6 +99,19 @@ def codec(example: Any) -> Codec:
         walk(value)
         return out
 
-    c = Codec(index[0], pack, unpack)
+    def arrays(value: Any) -> tuple[Any, ...]:
+        out: list[Any] = []
+
+        def walk(v: Any) -> None:
+            if isinstance(v, np.ndarray):
+                out.append(v)
+            elif isinstance(v, tuple):
+                for x in v:
+                    walk(x)
+
+        walk(value)
+        return tuple(out)
+
+    c = Codec(index[0], pack, unpack, arrays)
     _CACHE[shape] = c
     return c

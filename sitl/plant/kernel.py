@@ -4,8 +4,9 @@ Everything below the setpoint at the plant rate (1 kHz) -- disturbances and wind
 onboard attitude estimate and attitude loop, the mixer with its quantisation, the rigid body,
 the IMU and the 60 Hz tracking system -- is :func:`vehicle_step` on a :class:`VehicleState`
 (NamedTuples of floats, immutable), with everything that does not change in flight in a
-:class:`VehicleConst`. :func:`fly` adds the position loop of the control core at its own rate
-and writes the log; :func:`fly_batch` runs :func:`fly` for many vehicles in a parallel loop.
+:class:`VehicleConst`. :func:`fly_loop` adds the position loop of the control core at its own
+rate and writes the log; :func:`fly_many` runs it for many vehicles in a parallel loop, and
+:data:`fly_batch` is that loop compiled.
 The laws are the control core's own functions (``companion.control``), compiled where a kernel
 calls them; noise is drawn in the loop from counter-based streams (:mod:`.rng`).
 
@@ -31,7 +32,7 @@ from companion.control.attitude import (
     attitude_init,
     attitude_step,
 )
-from companion.control.jit import depends_on, jitable
+from companion.control.jit import depends_on, jitable, kernel
 from companion.control.outer_loop import (
     AttitudeSetpoint,
     LoopConst,
@@ -61,7 +62,7 @@ __all__ = [
     "WindConst", "WindState", "wind_const", "wind_init", "wind_step",
     "profiles_array", "profiles_at",
     "VehicleConst", "VehicleState", "vehicle_const", "vehicle_init", "vehicle_step",
-    "FlightConst", "flight_const", "LOG_COLUMNS", "fly_loop",
+    "FlightConst", "flight_const", "LOG_COLUMNS", "fly_loop", "FLIGHT_CODEC", "fly_many", "fly_batch",
 ]
 
 # --- rigid body (3), rotors, drag, ground ----------------------------------------------------------
@@ -142,7 +143,7 @@ def plant_step(c: PlantConst, s: RigidBody, rotor_cmd_rad_s: Rotors4, wind_ned_m
     vx, vy, vz = s.vel_ned_m_s
     ux, uy, uz = wind_ned_m_s
     bx, by, bz = mat_t_vec(rot, (vx - ux, vy - uy, vz - uz))  # air-relative velocity, body
-    airspeed = (bx * bx + by * by + bz * bz) ** 0.5
+    airspeed = math.sqrt(bx * bx + by * by + bz * bz)  # not ** 0.5: CPython's pow() is off by an ulp
     dlx, dly, dlz = c.drag_linear_n_s_m
     dq = c.drag_quadratic_n_s2_m2 * airspeed
     dx, dy, dz = -(dlx + dq) * bx, -(dly + dq) * by, -(dlz + dq) * bz  # drag, body
@@ -543,7 +544,7 @@ def vehicle_const(sc: object, attitude_kind: str, seed: int) -> VehicleConst:
 def vehicle_init(c: VehicleConst, pos_ned_m: Vec3, yaw_rad: float, hovering: bool) -> VehicleState:
     """At ``pos_ned_m``, level, rotors at hover speed (or stopped on the ground)."""
     p = c.plant
-    w = (p.weight_n / (4.0 * p.rotors.k_thrust_n_s2)) ** 0.5 if hovering else 0.0
+    w = math.sqrt(p.weight_n / (4.0 * p.rotors.k_thrust_n_s2)) if hovering else 0.0
     q = quat.from_yaw(yaw_rad)
     body = RigidBody(pos_ned_m, ZERO3, q, ZERO3, (w, w, w, w))
     sf0 = (0.0, 0.0, -p.gravity_m_s2)
@@ -562,7 +563,7 @@ def quantise(c: VehicleConst, w_sq: Rotors4) -> Rotors4:
 
 @jitable
 def _level(x: float, lo: float, hi: float, step: float) -> float:
-    w = x**0.5 if x > 0.0 else 0.0
+    w = math.sqrt(x) if x > 0.0 else 0.0
     w = lo if w < lo else (hi if w > hi else w)
     return lo + round((w - lo) / step) * step
 
@@ -765,17 +766,24 @@ def _example() -> FlightConst:
 
 
 FLIGHT_CODEC = codec(_example())
-"""Per-vehicle rows of a batch: every number of a :class:`FlightConst` (the arrays are the batch's)."""
+"""Per-vehicle rows of a batch: every number of a :class:`FlightConst`; its arrays (the force and
+torque profiles, the waypoints: ``FLIGHT_CODEC.arrays(c)``) are the batch's."""
 _unpack_flight = FLIGHT_CODEC.unpack
 
 
-def fly_many(template: FlightConst, rows: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
+def fly_many(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
+             waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
              final: NDArray[np.float64]) -> None:
-    """:func:`fly_loop` for each vehicle (a row of ``FLIGHT_CODEC``, the arrays of ``template``),
-    in parallel over the vehicles (``prange``); ``final[i]`` gets vehicle i's last position."""
+    """:func:`fly_loop` for each vehicle (a row of ``FLIGHT_CODEC``, with the batch's arrays), in
+    parallel over the vehicles (``prange``); ``logs[i]`` gets vehicle i's log, ``final[i]`` its
+    last position."""
     for i in prange(rows.shape[0]):
-        st = fly_loop(_unpack_flight(rows[i], template), steps, logs[i])
+        st = fly_loop(_unpack_flight(rows[i], forces, torques, waypoints), steps, logs[i])
         p = st.body.pos_ned_m
         final[i, 0] = p[0]
         final[i, 1] = p[1]
         final[i, 2] = p[2]
+
+fly_batch = kernel(fly_many, parallel=True)
+""":func:`fly_many` compiled (cached on disk), its loop over vehicles parallel on every core; or as
+it is without numba. One vehicle flies as a batch of one: a single kernel to compile (~20 s)."""
