@@ -21,6 +21,7 @@ draw different but equally distributed numbers (the kernel's counter-based strea
 from __future__ import annotations
 
 import os
+import threading
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -191,6 +192,11 @@ def simulate(scenario: Scenario, position: str, attitude: str, seeds: int | Sequ
     return Simulation(scenario, position, attitude, seeds).run(duration_s)
 
 
+_KERNEL_LAUNCH = threading.Lock()
+"""one parallel kernel at a time per process (numba's workqueue layer is not thread-safe, see
+companion.control.jit.PARALLEL_LAYER; a Dask worker may run several tasks in threads)"""
+
+
 def simulate_compiled(scenario: Scenario, position: str, attitude: str, seeds: int | Sequence[int] = 1,
                       duration_s: float | None = None) -> FlightLog:
     """:func:`simulate` on the compiled kernel: every vehicle (per-vehicle gains as in a sweep's
@@ -211,7 +217,8 @@ def simulate_compiled(scenario: Scenario, position: str, attitude: str, seeds: i
     n_log = -(-steps // consts[0].log_div)
     logs = np.empty((len(consts), n_log, len(LOG_COLUMNS)))
     final = np.empty((len(consts), 3))
-    kernel.fly_batch(rows, *arrays, steps, logs, final)
+    with _KERNEL_LAUNCH:
+        kernel.fly_batch(rows, *arrays, steps, logs, final)
     if batch:
         cols = {name: logs[:, :, i].T.copy() for i, name in enumerate(LOG_COLUMNS)}
         cols["t"] = logs[0, :, 0].copy()
