@@ -304,6 +304,8 @@ def mocap_init(body: RigidBody) -> MocapState:
 def mocap_step(c: SensorConst, st: MocapState, t_s: float, body: RigidBody) -> tuple[MocapState, bool]:
     """Take a sample when one is due, deliver those whose delay has passed; (state, delivered)."""
     next_s, taken, pending, n = st.next_s, st.taken, st.pending, st.n_pending
+    if t_s + 1e-9 < next_s and (n == 0 or pending[PENDING - n].due_s > t_s + 1e-9):
+        return st, False  # 15 of 16 steps: nothing to take or deliver, the state is not rebuilt
     if t_s + 1e-9 >= next_s:
         k, pn, an = c.mocap_keys, c.mocap_pos_noise_m, c.mocap_att_noise_rad
         p = body.pos_ned_m
