@@ -13,8 +13,9 @@ Two engines fly the same laws (the control core's step functions; ``SITL_ENGINE`
 ``sim`` extra) runs :func:`sitl.plant.kernel.fly_batch`, one compiled loop per vehicle, the
 vehicles in parallel on every core; ``objects`` runs the objects below (``SimVehicle``, the
 companion's ``PositionLoop``), the path the live MAVLink vehicle takes, in plain Python. With
-noise and turbulence off they agree to ~1e-13 (tests/sitl/test_compiled.py); with noise on they
-draw different but equally distributed numbers (the kernel's counter-based streams,
+noise and turbulence off they fly the same flight to the last bits (tests/sitl/test_compiled.py
+holds them within 1e-12 for E1-E5 and every controller); with noise on they draw different but
+equally distributed numbers (the kernel's counter-based streams,
 :mod:`sitl.plant.rng`; the objects' pre-drawn blocks, :mod:`sitl.plant.noise`).
 """
 
@@ -31,10 +32,10 @@ from numpy.typing import NDArray
 
 from companion.control import quaternion as quat
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
+from companion.control.jit import numba_available
 from companion.control.trajectory import PositionReference, ReferenceFilter
 
-from companion.control.jit import numba_available
-
+from ..plant import kernel
 from ..plant.kernel import LOG_COLUMNS
 from ..plant.scenario import Scenario
 from ..plant.vehicle import SimVehicle
@@ -208,8 +209,6 @@ def simulate_compiled(scenario: Scenario, position: str, attitude: str, seeds: i
                       duration_s: float | None = None) -> FlightLog:
     """:func:`simulate` on the compiled kernel: every vehicle (per-vehicle gains as in a sweep's
     batch) is a row of constants, all flown by :func:`sitl.plant.kernel.fly_batch`."""
-    from ..plant import kernel
-
     sc = scenario
     batch = not isinstance(seeds, (int, np.integer))
     seed_list = [int(s) for s in seeds] if batch else [int(seeds)]  # type: ignore[union-attr]
