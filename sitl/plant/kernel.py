@@ -786,6 +786,7 @@ def fly_many(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: ND
         final[i, 1] = p[1]
         final[i, 2] = p[2]
 
+
 fly_batch = kernel(fly_many, parallel=True)
 """:func:`fly_many` compiled (cached on disk), its loop over vehicles parallel on every core; or as
 it is without numba. One vehicle flies as a batch of one: a single kernel to compile (~20 s)."""
