@@ -75,11 +75,13 @@ def numba_available() -> bool:
 
 
 def _digest() -> str:
+    """Of every source file, in path order: the same whichever module called depends_on first
+    (the import order differs between processes; the cache folder must not)."""
     h = hashlib.sha256()
-    files: list[Path] = []
+    files: set[Path] = set()
     for src in SOURCES:
-        files.extend(sorted(src.rglob("*.py")) if src.is_dir() else [src])
-    for f in files:
+        files.update(src.rglob("*.py") if src.is_dir() else [src])
+    for f in sorted(files):
         h.update(f.name.encode())
         h.update(f.read_bytes())
     return h.hexdigest()[:16]

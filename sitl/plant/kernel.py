@@ -48,6 +48,7 @@ from companion.control.vector import ZERO3, Vec3, lowpass_alpha
 from . import rng
 from .body import Forces, PlantConst, RigidBody, plant_const, plant_step
 from .codec import codec
+from .onboard import estimator_correct
 
 try:
     from numba import prange
@@ -430,15 +431,6 @@ def _level(x: float, lo: float, hi: float, step: float) -> float:
 
 
 @jitable
-def estimator_correct(c: VehicleConst, q_est: Quat, bias: Vec3, q_measured: Quat) -> tuple[Quat, Vec3]:
-    """Pull the estimate towards a tracking sample and learn the gyro bias (PI correction)."""
-    err = quat.log(quat.relative(q_est, q_measured))  # body-frame error [rad]
-    k, kb = c.estimator_attitude_gain, c.estimator_bias_gain
-    q = quat.normalize(quat.mul(q_est, quat.exp((k * err[0], k * err[1], k * err[2]))))
-    return q, (bias[0] - kb * err[0], bias[1] - kb * err[1], bias[2] - kb * err[2])
-
-
-@jitable
 def vehicle_step(c: VehicleConst, st: VehicleState, sp: AttitudeSetpoint, motors_on: bool,
                  extra_force_ned_n: Vec3, extra_torque_nm: Vec3) -> VehicleState:
     """One plant step with the firmware tracking ``sp``."""
@@ -467,7 +459,8 @@ def vehicle_step(c: VehicleConst, st: VehicleState, sp: AttitudeSetpoint, motors
     mocap, fresh = mocap_step(c.sensors, st.mocap, t, body)
     bias = b
     if fresh:
-        q_est, bias = estimator_correct(c, q_est, bias, mocap.latest.q)
+        q_est, bias = estimator_correct(c.estimator_attitude_gain, c.estimator_bias_gain, q_est, bias,
+                                        mocap.latest.q)
     return VehicleState(st.k + 1, t, body, forces, wind_state, wind, gyro, sf,
                         (s[0] + sf[0], s[1] + sf[1], s[2] + sf[2]), st.sf_count + 1,
                         mocap, q_est, bias, omega, attitude, torque_applied, thrust_applied, cmd)

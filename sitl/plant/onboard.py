@@ -18,12 +18,15 @@ import numpy as np
 from companion.control import quaternion as quat
 from companion.control.allocation import Rotors4, rotor_speeds_sq_for, wrench_from_rotor_speeds
 from companion.control.attitude import AttitudeController
+from companion.control.jit import depends_on, jitable
 from companion.control.outer_loop import AttitudeSetpoint
 from companion.control.params import AttitudeGains, VehicleParams
 from companion.control.quaternion import Quat
 from companion.control.vector import ZERO3, Real, Vec3, clip, sqrt
 
-__all__ = ["EstimatorGains", "AttitudeEstimator", "OnboardAttitudeLoop"]
+depends_on(__file__)  # the kernel inlines estimator_correct
+
+__all__ = ["EstimatorGains", "AttitudeEstimator", "OnboardAttitudeLoop", "estimator_correct"]
 
 
 @dataclass(frozen=True)
@@ -50,16 +53,22 @@ class AttitudeEstimator:
         return omega
 
     def correct(self, q_measured: Quat) -> None:
-        """Pull the estimate towards a tracking sample and learn the gyro bias (PI correction).
+        """Pull the estimate towards a tracking sample and learn the gyro bias (:func:`estimator_correct`)."""
+        self.q, self.gyro_bias = estimator_correct(self.gains.attitude_gain, self.gains.bias_gain, self.q,
+                                                   self.gyro_bias, q_measured)
 
-        A positive bias makes the estimate run ahead of the measurement, giving a negative error,
-        so the bias estimate moves against the error.
-        """
-        err = quat.log(quat.relative(self.q, q_measured))  # body-frame error [rad]
-        k, kb = self.gains.attitude_gain, self.gains.bias_gain
-        self.q = quat.normalize(quat.mul(self.q, quat.exp((k * err[0], k * err[1], k * err[2]))))
-        b = self.gyro_bias
-        self.gyro_bias = (b[0] - kb * err[0], b[1] - kb * err[1], b[2] - kb * err[2])
+
+@jitable
+def estimator_correct(attitude_gain: Real, bias_gain: Real, q_est: Quat, gyro_bias: Vec3,
+                      q_measured: Quat) -> tuple[Quat, Vec3]:
+    """Pull the estimate towards a tracking sample and learn the gyro bias (PI correction): the
+    estimate and bias after one sample. A positive bias makes the estimate run ahead of the
+    measurement, giving a negative error, so the bias estimate moves against the error."""
+    err = quat.log(quat.relative(q_est, q_measured))  # body-frame error [rad]
+    k, kb = attitude_gain, bias_gain
+    q = quat.normalize(quat.mul(q_est, quat.exp((k * err[0], k * err[1], k * err[2]))))
+    b = gyro_bias
+    return q, (b[0] - kb * err[0], b[1] - kb * err[1], b[2] - kb * err[2])
 
 
 def _round(x: Real) -> Real:
