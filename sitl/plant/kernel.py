@@ -48,7 +48,7 @@ from companion.control.vector import ZERO3, Vec3, lowpass_alpha
 from . import rng
 from .body import Forces, PlantConst, RigidBody, plant_const, plant_step
 from .codec import codec
-from .onboard import estimator_correct
+from .onboard import command_level, estimator_correct
 
 try:
     from numba import prange
@@ -419,15 +419,8 @@ def vehicle_init(c: VehicleConst, pos_ned_m: Vec3, yaw_rad: float, hovering: boo
 def quantise(c: VehicleConst, w_sq: Rotors4) -> Rotors4:
     """Rotor speed commands [rad/s] for squared speeds: clipped to range, then quantised (8 bit)."""
     lo, hi, step = c.command_min_rad_s, c.command_max_rad_s, c.command_step_rad_s
-    return (_level(w_sq[0], lo, hi, step), _level(w_sq[1], lo, hi, step), _level(w_sq[2], lo, hi, step),
-            _level(w_sq[3], lo, hi, step))
-
-
-@jitable
-def _level(x: float, lo: float, hi: float, step: float) -> float:
-    w = math.sqrt(x) if x > 0.0 else 0.0
-    w = lo if w < lo else (hi if w > hi else w)
-    return lo + round((w - lo) / step) * step
+    return (command_level(w_sq[0], lo, hi, step), command_level(w_sq[1], lo, hi, step),
+            command_level(w_sq[2], lo, hi, step), command_level(w_sq[3], lo, hi, step))
 
 
 @jitable

@@ -26,7 +26,8 @@ from companion.control.vector import ZERO3, Real, Vec3, clip, sqrt
 
 depends_on(__file__)  # the kernel inlines estimator_correct
 
-__all__ = ["EstimatorGains", "AttitudeEstimator", "OnboardAttitudeLoop", "estimator_correct"]
+__all__ = ["EstimatorGains", "AttitudeEstimator", "OnboardAttitudeLoop", "estimator_correct",
+           "command_level"]
 
 
 @dataclass(frozen=True)
@@ -71,6 +72,15 @@ def estimator_correct(attitude_gain: Real, bias_gain: Real, q_est: Quat, gyro_bi
     return q, (b[0] - kb * err[0], b[1] - kb * err[1], b[2] - kb * err[2])
 
 
+@jitable
+def command_level(w_sq: float, lo_rad_s: float, hi_rad_s: float, step_rad_s: float) -> float:
+    """One rotor's speed command [rad/s] for a squared speed: clipped to range, then on the
+    motor interface's grid (the compiled kernel's mixer calls this too)."""
+    w = math.sqrt(w_sq) if w_sq > 0.0 else 0.0
+    w = lo_rad_s if w < lo_rad_s else (hi_rad_s if w > hi_rad_s else w)
+    return lo_rad_s + round((w - lo_rad_s) / step_rad_s) * step_rad_s
+
+
 def _round(x: Real) -> Real:
     return np.rint(x) if type(x) is np.ndarray else float(round(x))
 
@@ -106,12 +116,8 @@ class OnboardAttitudeLoop:
         """Rotor speed commands [rad/s] for squared speeds: clipped to range, then quantised."""
         lo, hi, step = self._w_min, self._w_max, self._step
         if type(w_sq[0]) is float:  # one vehicle: plain floats, several times faster
-            out = []
-            for x in w_sq:
-                w = math.sqrt(x) if x > 0.0 else 0.0
-                w = lo if w < lo else (hi if w > hi else w)
-                out.append(lo + round((w - lo) / step) * step)
-            return (out[0], out[1], out[2], out[3])
+            return (command_level(w_sq[0], lo, hi, step), command_level(w_sq[1], lo, hi, step),
+                    command_level(w_sq[2], lo, hi, step), command_level(w_sq[3], lo, hi, step))
         ws = [clip(sqrt(clip(x, 0.0, math.inf)), lo, hi) for x in w_sq]
         return tuple(lo + _round((w - lo) / step) * step for w in ws)  # type: ignore[return-value]
 
