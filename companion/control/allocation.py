@@ -19,6 +19,9 @@ This is (4) with the roll row's sign flipped by the FRD y axis. The plant calls
 
 from __future__ import annotations
 
+from typing import NamedTuple, Union
+
+from .jit import jitable
 from .params import VehicleParams
 from .vector import Real, Vec3, clip
 
@@ -28,12 +31,34 @@ __all__ = [
     "wrench_from_rotor_speeds",
     "rotor_speeds_sq_for",
     "allocate",
+    "RotorModel",
 ]
 
 Rotors4 = tuple[Real, Real, Real, Real]
 
 
-def wrench_from_rotor_speeds_sq(w_sq: Rotors4, vehicle: VehicleParams) -> tuple[Vec3, Real]:
+class RotorModel(NamedTuple):
+    """The rotor constants of :class:`~companion.control.params.VehicleParams`, by the same names, as
+    a tuple for compiled code: the functions below take either."""
+
+    k_thrust_n_s2: float
+    k_torque_nm_s2: float
+    arm_length_m: float
+    rotor_speed_min_rad_s: float
+    rotor_speed_max_rad_s: float
+
+    @staticmethod
+    def of(vehicle: VehicleParams) -> RotorModel:
+        v = vehicle
+        return RotorModel(v.k_thrust_n_s2, v.k_torque_nm_s2, v.arm_length_m, v.rotor_speed_min_rad_s,
+                          v.rotor_speed_max_rad_s)
+
+
+Rotors = Union[VehicleParams, RotorModel]
+
+
+@jitable
+def wrench_from_rotor_speeds_sq(w_sq: Rotors4, vehicle: Rotors) -> tuple[Vec3, Real]:
     """Body torque [N m] and collective thrust [N] of squared rotor speeds, (4)."""
     kf, kq, arm = vehicle.k_thrust_n_s2, vehicle.k_torque_nm_s2, vehicle.arm_length_m
     w1, w2, w3, w4 = w_sq
@@ -41,12 +66,14 @@ def wrench_from_rotor_speeds_sq(w_sq: Rotors4, vehicle: VehicleParams) -> tuple[
     return torque, kf * (w1 + w2 + w3 + w4)
 
 
-def wrench_from_rotor_speeds(w: Rotors4, vehicle: VehicleParams) -> tuple[Vec3, Real]:
+@jitable
+def wrench_from_rotor_speeds(w: Rotors4, vehicle: Rotors) -> tuple[Vec3, Real]:
     """As :func:`wrench_from_rotor_speeds_sq`, from rotor speeds [rad/s]."""
     return wrench_from_rotor_speeds_sq((w[0] * w[0], w[1] * w[1], w[2] * w[2], w[3] * w[3]), vehicle)
 
 
-def rotor_speeds_sq_for(torque_nm: Vec3, thrust_n: Real, vehicle: VehicleParams) -> Rotors4:
+@jitable
+def rotor_speeds_sq_for(torque_nm: Vec3, thrust_n: Real, vehicle: Rotors) -> Rotors4:
     """``Omega = B^-1 u``, solved analytically (unclipped, may leave the rotors' range)."""
     kf, kq, arm = vehicle.k_thrust_n_s2, vehicle.k_torque_nm_s2, vehicle.arm_length_m
     a = thrust_n / kf
@@ -58,7 +85,8 @@ def rotor_speeds_sq_for(torque_nm: Vec3, thrust_n: Real, vehicle: VehicleParams)
     return (front_back + 0.5 * y, left_right + 0.5 * x, front_back - 0.5 * y, left_right - 0.5 * x)
 
 
-def allocate(torque_nm: Vec3, thrust_n: Real, vehicle: VehicleParams) -> tuple[Rotors4, Vec3, Real]:
+@jitable
+def allocate(torque_nm: Vec3, thrust_n: Real, vehicle: Rotors) -> tuple[Rotors4, Vec3, Real]:
     """Squared rotor speeds clipped to the rotors' range, and the wrench they actually produce.
 
     The disturbance observers must be fed the applied torque and thrust (SPEC section 1), which

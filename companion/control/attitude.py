@@ -23,7 +23,17 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from . import quaternion as quat
-from .observers import IncrementalTorque, TorqueObserver
+from .jit import jitable
+from .observers import (
+    IncrementalConst,
+    IncrementalState,
+    TorqueObserverState,
+    incremental_const,
+    incremental_init,
+    incremental_step,
+    torque_observer_init,
+    torque_observer_step,
+)
 from .params import AttitudeGains
 from .quaternion import Quat
 from .vector import (
@@ -33,6 +43,8 @@ from .vector import (
     absolute,
     add,
     cross,
+    is_scalar,
+    lowpass_alpha,
     mul,
     sat,
     sub,
@@ -47,29 +59,41 @@ __all__ = [
     "feedback_vector_rate",
     "rate_error",
     "nominal_torque",
+    "AttitudeConst",
+    "AttitudeState",
+    "attitude_const",
+    "attitude_init",
+    "attitude_step",
+    "attitude_disturbance_estimate",
     "AttitudeController",
 ]
 
 ATTITUDE_CONTROLLERS = ("pd", "pd_do", "ism_do", "indi")
+PD, PD_DO, ISM_DO, INDI = 0, 1, 2, 3
+"""``AttitudeConst.kind``: the index in ATTITUDE_CONTROLLERS."""
 
 
+@jitable
 def attitude_error(q: Quat, q_d: Quat) -> Quat:
     """``q~ = q_d^* ⊗ q``: rotation from the desired frame D to the body frame B (5)."""
     return quat.relative(q_d, q)
 
 
+@jitable
 def feedback_vector(q_err: Quat) -> Vec3:
     """``e = 2 eta~ eps~``, the gradient form of ``H = eps~^T eps~`` (section III.A)."""
     k = 2.0 * q_err[0]
     return (k * q_err[1], k * q_err[2], k * q_err[3])
 
 
+@jitable
 def rate_error(q_err: Quat, omega_rad_s: Vec3, omega_d_rad_s: Vec3) -> tuple[Vec3, Vec3]:
     """``(omega~, R~^T omega_d)`` with ``omega~ = omega - R~^T omega_d`` (6); ``omega_d`` in D."""
     omega_d_body = quat.rotate_inverse(q_err, omega_d_rad_s)
     return sub(omega_rad_s, omega_d_body), omega_d_body
 
 
+@jitable
 def feedback_vector_rate(q_err: Quat, omega_err_rad_s: Vec3) -> Vec3:
     """``d/dt e`` from the error kinematics ``q~' = 1/2 q~ ⊗ (0, omega~)`` (no differentiation)."""
     eta = q_err[0]
@@ -97,12 +121,18 @@ class AttitudeError(NamedTuple):
 
     @staticmethod
     def of(q: Quat, omega_rad_s: Vec3, q_d: Quat, omega_d_rad_s: Vec3) -> AttitudeError:
-        q_err = attitude_error(q, q_d)
-        omega_err, omega_d_body = rate_error(q_err, omega_rad_s, omega_d_rad_s)
-        fields = (q_err, feedback_vector(q_err), feedback_vector_rate(q_err, omega_err), omega_err, omega_d_body)
-        return tuple.__new__(AttitudeError, fields)  # skips NamedTuple's Python-level __new__
+        return attitude_error_of(q, omega_rad_s, q_d, omega_d_rad_s)
 
 
+@jitable
+def attitude_error_of(q: Quat, omega_rad_s: Vec3, q_d: Quat, omega_d_rad_s: Vec3) -> AttitudeError:
+    q_err = attitude_error(q, q_d)
+    omega_err, omega_d_body = rate_error(q_err, omega_rad_s, omega_d_rad_s)
+    return AttitudeError(q_err, feedback_vector(q_err), feedback_vector_rate(q_err, omega_err), omega_err,
+                         omega_d_body)
+
+
+@jitable
 def nominal_torque(
     err: AttitudeError,
     omega_rad_s: Vec3,
@@ -120,9 +150,8 @@ def nominal_torque(
     ff0 = a[1] * b[2] - a[2] * b[1]
     ff1 = a[2] * b[0] - a[0] * b[2]
     ff2 = a[0] * b[1] - a[1] * b[0]
-    if omega_d_dot_rad_s2 is not ZERO3:
-        wd = quat.rotate_inverse(err.q_err, omega_d_dot_rad_s2)
-        ff0, ff1, ff2 = ff0 + wd[0], ff1 + wd[1], ff2 + wd[2]
+    wd = quat.rotate_inverse(err.q_err, omega_d_dot_rad_s2)
+    ff0, ff1, ff2 = ff0 + wd[0], ff1 + wd[1], ff2 + wd[2]
     e, e_dot, j, w = err.e, err.e_dot, inertia_kg_m2, omega_rad_s
     jw0, jw1, jw2 = j[0] * w[0], j[1] * w[1], j[2] * w[2]
     return (
@@ -132,59 +161,169 @@ def nominal_torque(
     )
 
 
+class AttitudeConst(NamedTuple):
+    """What :func:`attitude_step` needs besides its state: gains derived for one step length."""
+
+    kind: int
+    inertia_kg_m2: Vec3
+    """J0, the controller's nominal inertia"""
+    k_v: Real
+    c: Real
+    eps: Vec3
+    k_w: Vec3
+    anti_windup: bool
+    observer_alpha: Vec3
+    incremental: IncrementalConst
+    dt_s: float
+
+
+class AttitudeState(NamedTuple):
+    z: Vec3
+    """ISM integral state of (10)-(11)"""
+    s: Vec3
+    """last sliding variable, for logs"""
+    started: bool
+    observer: TorqueObserverState
+    incremental: IncrementalState
+    omega: Vec3
+    """last rate (INDI's estimate adds back its gyroscopic part)"""
+
+
+def attitude_const(kind: str, gains: AttitudeGains, inertia_kg_m2: Vec3, dt_s: float) -> AttitudeConst:
+    if kind not in ATTITUDE_CONTROLLERS:
+        raise ValueError(f"unknown attitude controller {kind!r}; expected one of {ATTITUDE_CONTROLLERS}")
+    eps = gains.boundary_layer_rad_s
+    b = gains.observer_gain_rad_s
+    return AttitudeConst(
+        kind=ATTITUDE_CONTROLLERS.index(kind),
+        inertia_kg_m2=inertia_kg_m2,
+        k_v=2.0 * gains.omega_c_rad_s,
+        c=gains.omega_c_rad_s ** 2,
+        eps=eps,
+        # K = k_s J0 (inside the layer), K_w = K eps
+        k_w=mul(mul(gains.sliding_gain_rad_s, inertia_kg_m2), eps),
+        anti_windup=gains.anti_windup,
+        observer_alpha=(lowpass_alpha(b[0], dt_s), lowpass_alpha(b[1], dt_s), lowpass_alpha(b[2], dt_s)),
+        incremental=incremental_const(inertia_kg_m2, gains.indi_filter_rad_s, gains.indi_actuator_time_constant_s,
+                                      dt_s),
+        dt_s=dt_s,
+    )
+
+
+@jitable
+def attitude_init() -> AttitudeState:
+    return AttitudeState(ZERO3, ZERO3, False, torque_observer_init(), incremental_init(), ZERO3)
+
+
+@jitable
+def attitude_step(
+    c: AttitudeConst,
+    st: AttitudeState,
+    q: Quat,
+    omega_rad_s: Vec3,
+    q_d: Quat,
+    omega_d_rad_s: Vec3,
+    torque_applied_prev_nm: Vec3,
+    omega_d_dot_rad_s2: Vec3,
+) -> tuple[AttitudeState, Vec3]:
+    """One attitude step: the new state and the requested body torque [N m].
+
+    ``torque_applied_prev_nm`` is what the rotors actually applied in the previous step (from
+    :func:`allocation.allocate`): the observers must see saturation, not mistake it for a disturbance.
+    """
+    err = attitude_error_of(q, omega_rad_s, q_d, omega_d_rad_s)
+    tau = nominal_torque(err, omega_rad_s, omega_d_dot_rad_s2, c.inertia_kg_m2, c.k_v, c.c)
+    if c.kind == INDI:
+        # J0 nu = tau_0 - w x J0 w; tau = tau_f + J0 nu - J0 w'_f
+        w, j = omega_rad_s, c.inertia_kg_m2
+        incremental = incremental_step(c.incremental, st.incremental, omega_rad_s, torque_applied_prev_nm, c.dt_s)
+        tau = sub(sub(tau, cross(w, mul(j, w))), incremental.estimate_nm)
+        return AttitudeState(st.z, st.s, st.started, st.observer, incremental, omega_rad_s), tau
+    observer = st.observer
+    if c.kind == PD_DO or c.kind == ISM_DO:
+        observer = torque_observer_step(observer, c.inertia_kg_m2, c.observer_alpha, omega_rad_s,
+                                        torque_applied_prev_nm, c.dt_s, ZERO3)
+        tau = sub(tau, observer.estimate_nm)
+    z, s, started = st.z, st.s, st.started
+    if c.kind == ISM_DO:
+        z, s, started, term = _sliding_term(c, z, started, err)
+        tau = sub(tau, term)
+    return AttitudeState(z, s, started, observer, st.incremental, omega_rad_s), tau
+
+
+@jitable
+def _sliding_term(c: AttitudeConst, z: Vec3, started: bool, err: AttitudeError) -> tuple[Vec3, Vec3, bool, Vec3]:
+    """``K_w sat(s / eps)`` with ``s = s0 + z``, ``s0 = omega~ + K_v e``, ``z' = c e`` (10), (11), (23).
+
+    Anti-windup ([29]): where ``|s / eps| > 1`` the element is reset to ``z = -s0`` and not
+    integrated, so the integral cannot wind up while the term saturates. Returns the new ``z``,
+    ``s``, the started flag and the term.
+    """
+    k_v, cc, eps = c.k_v, c.c, c.eps
+    w, e = err.omega_err, err.e
+    s0 = (w[0] + k_v * e[0], w[1] + k_v * e[1], w[2] + k_v * e[2])
+    if not started:
+        z = (-s0[0], -s0[1], -s0[2])  # z(0) = -s0(0): sliding from the first instant
+    s = (s0[0] + z[0], s0[1] + z[1], s0[2] + z[2])
+    z = _integrate_with_reset(z, s, s0, (cc * e[0], cc * e[1], cc * e[2]), eps, c.dt_s, c.anti_windup)
+    return z, s, True, mul(c.k_w, sat(s, eps))
+
+
+@jitable
+def attitude_disturbance_estimate(c: AttitudeConst, st: AttitudeState) -> Vec3:
+    """What the controller attributes to disturbance [N m]: the DO's estimate, or for INDI what it
+    cancels less the gyroscopic torque it includes."""
+    if c.kind == INDI:
+        w, j = st.omega, c.inertia_kg_m2
+        return add(st.incremental.estimate_nm, cross(w, mul(j, w)))
+    return st.observer.estimate_nm
+
+
 @dataclass
 class AttitudeController:
-    """PD, PD+DO or ISM+DO attitude tracking, chosen by ``kind`` (one of ATTITUDE_CONTROLLERS).
+    """PD, PD+DO, ISM+DO or INDI attitude tracking, chosen by ``kind`` (one of ATTITUDE_CONTROLLERS).
 
     Call :meth:`update` once per attitude step with the latest gyro rate and the torque that
-    the rotors actually applied in the previous step (from :func:`allocation.allocate`).
+    the rotors actually applied in the previous step (from :func:`allocation.allocate`). A thin
+    wrapper around :func:`attitude_step` holding its state.
     """
 
     kind: str
     gains: AttitudeGains
     inertia_kg_m2: Vec3
     """J0, the controller's nominal inertia"""
-    z: Vec3 = ZERO3
-    """ISM integral state of (10)-(11)"""
-    s: Vec3 = ZERO3
-    """last sliding variable, for logs"""
-    _started: bool = field(default=False, repr=False)
-    observer: TorqueObserver = field(init=False)
-    _omega: Vec3 = field(default=ZERO3, repr=False)
+    state: AttitudeState = field(default_factory=attitude_init, repr=False)
+    _const: AttitudeConst | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        if self.kind not in ATTITUDE_CONTROLLERS:
-            raise ValueError(f"unknown attitude controller {self.kind!r}; expected one of {ATTITUDE_CONTROLLERS}")
-        self.observer = TorqueObserver(self.inertia_kg_m2, self.gains.observer_gain_rad_s)
-        self._k_v = 2.0 * self.gains.omega_c_rad_s
-        self._c = self.gains.omega_c_rad_s ** 2
-        eps = self.gains.boundary_layer_rad_s
-        self._eps = eps
-        # K = k_s J0 (inside the layer), K_w = K eps
-        self._k_w = mul(mul(self.gains.sliding_gain_rad_s, self.inertia_kg_m2), eps)
-        self._uses_observer = self.kind in ("pd_do", "ism_do")
-        self._uses_ism = self.kind == "ism_do"
-        self.incremental = IncrementalTorque(self.inertia_kg_m2, self.gains.indi_filter_rad_s,
-                                             self.gains.indi_actuator_time_constant_s)
+        self.const(1e-3)  # checks the kind
+
+    def const(self, dt_s: float) -> AttitudeConst:
+        c = self._const
+        if c is None or c.dt_s != dt_s:
+            c = self._const = attitude_const(self.kind, self.gains, self.inertia_kg_m2, dt_s)
+        return c
+
+    @property
+    def z(self) -> Vec3:
+        return self.state.z
+
+    @property
+    def s(self) -> Vec3:
+        return self.state.s
 
     def reset(self) -> None:
-        self.reset_integral()
-        self.observer.reset()
-        self.incremental.reset()
+        self.state = attitude_init()
 
     def reset_integral(self) -> None:
         """Restart the sliding mode from the current error (z = -s0) at the next update: for a
         change of reference type, when the old integral no longer means anything."""
-        self.z = ZERO3
-        self.s = ZERO3
-        self._started = False
+        self.state = self.state._replace(z=ZERO3, s=ZERO3, started=False)
 
     @property
     def disturbance_estimate_nm(self) -> Vec3:
-        if self.kind == "indi":  # what INDI cancels, less the gyroscopic torque it includes
-            w, j = self._omega, self.inertia_kg_m2
-            return add(self.incremental.estimate_nm, cross(w, mul(j, w)))
-        return self.observer.estimate_nm
+        assert self._const is not None
+        return attitude_disturbance_estimate(self._const, self.state)
 
     def update(
         self,
@@ -197,40 +336,12 @@ class AttitudeController:
         omega_d_dot_rad_s2: Vec3 = ZERO3,
     ) -> Vec3:
         """Requested body torque [N m] for this step."""
-        err = AttitudeError.of(q, omega_rad_s, q_d, omega_d_rad_s)
-        tau = nominal_torque(err, omega_rad_s, omega_d_dot_rad_s2, self.inertia_kg_m2, self._k_v, self._c)
-        if self.kind == "indi":
-            # J0 nu = tau_0 - w x J0 w; tau = tau_f + J0 nu - J0 w'_f
-            self._omega = w = omega_rad_s
-            j = self.inertia_kg_m2
-            measured = self.incremental.update(omega_rad_s, torque_applied_prev_nm, dt_s)
-            return sub(sub(tau, cross(w, mul(j, w))), measured)
-        if self._uses_observer:
-            h_hat = self.observer.update(omega_rad_s, torque_applied_prev_nm, dt_s)
-            tau = sub(tau, h_hat)
-        if self._uses_ism:
-            tau = sub(tau, self._sliding_term(err, dt_s))
+        self.state, tau = attitude_step(self.const(dt_s), self.state, q, omega_rad_s, q_d, omega_d_rad_s,
+                                        torque_applied_prev_nm, omega_d_dot_rad_s2)
         return tau
 
-    def _sliding_term(self, err: AttitudeError, dt_s: float) -> Vec3:
-        """``K_w sat(s / eps)`` with ``s = s0 + z``, ``s0 = omega~ + K_v e``, ``z' = c e`` (10), (11), (23).
 
-        Anti-windup ([29]): where ``|s / eps| > 1`` the element is reset to ``z = -s0`` and not
-        integrated, so the integral cannot wind up while the term saturates.
-        """
-        k_v, c, eps = self._k_v, self._c, self._eps
-        w, e = err.omega_err, err.e
-        s0 = (w[0] + k_v * e[0], w[1] + k_v * e[1], w[2] + k_v * e[2])
-        if not self._started:
-            self.z = (-s0[0], -s0[1], -s0[2])  # z(0) = -s0(0): sliding from the first instant
-            self._started = True
-        z = self.z
-        s = (s0[0] + z[0], s0[1] + z[1], s0[2] + z[2])
-        self.s = s
-        self.z = _integrate_with_reset(z, s, s0, (c * e[0], c * e[1], c * e[2]), eps, dt_s, self.gains.anti_windup)
-        return mul(self._k_w, sat(s, eps))
-
-
+@jitable
 def _integrate_with_reset(z: Vec3, s: Vec3, s0: Vec3, z_dot: Vec3, eps: Vec3, dt_s: float, anti_windup: bool) -> Vec3:
     """``z + z_dot dt``, except that an element whose ``|s| > eps`` is reset to ``-s0`` ([29]).
 
@@ -238,7 +349,7 @@ def _integrate_with_reset(z: Vec3, s: Vec3, s0: Vec3, z_dot: Vec3, eps: Vec3, dt
     """
     if not anti_windup:
         return (z[0] + z_dot[0] * dt_s, z[1] + z_dot[1] * dt_s, z[2] + z_dot[2] * dt_s)
-    if type(s[0]) is float:  # one vehicle: plain comparisons instead of where()
+    if is_scalar(s[0]):  # one vehicle: plain comparisons instead of where()
         return (
             -s0[0] if abs(s[0]) > eps[0] else z[0] + z_dot[0] * dt_s,  # type: ignore[operator]
             -s0[1] if abs(s[1]) > eps[1] else z[1] + z_dot[1] * dt_s,  # type: ignore[operator]

@@ -18,9 +18,10 @@ difference see the same filter, so in the nominal model the difference is exactl
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
+from .jit import jitable
 from .vector import (
     ZERO3,
     Real,
@@ -30,9 +31,21 @@ from .vector import (
     sub,
 )
 
-__all__ = ["TorqueObserver", "ForceObserver", "MomentumObserver", "MatchingFilter", "IncrementalTorque", "lowpass_step"]
+__all__ = [
+    "TorqueObserver", "ForceObserver", "MomentumObserver", "MatchingFilter", "IncrementalTorque", "lowpass_step",
+    "TorqueObserverState", "torque_observer_init", "torque_observer_step",
+    "MATCHING_CAPACITY", "MatchingConst", "MatchingState", "matching_const", "matching_init", "matching_step",
+    "ForceObserverConst", "ForceObserverState", "force_observer_const", "force_observer_init", "force_observer_step",
+    "MomentumConst", "MomentumState", "momentum_init", "momentum_step",
+    "IncrementalConst", "IncrementalState", "incremental_const", "incremental_init", "incremental_step",
+    "lowpass_chain",
+]
+
+Stages4 = tuple[Vec3, Vec3, Vec3, Vec3]
+ZERO_STAGES: Stages4 = (ZERO3, ZERO3, ZERO3, ZERO3)
 
 
+@jitable
 def lowpass_step(estimate: Vec3, measurement: Vec3, alpha: Vec3) -> Vec3:
     """One step of the first-order filter ``h_hat += alpha (h_meas - h_hat)`` (19)."""
     return (
@@ -40,6 +53,31 @@ def lowpass_step(estimate: Vec3, measurement: Vec3, alpha: Vec3) -> Vec3:
         estimate[1] + alpha[1] * (measurement[1] - estimate[1]),
         estimate[2] + alpha[2] * (measurement[2] - estimate[2]),
     )
+
+
+@jitable
+def lowpass_chain(stages: Stages4, u: Vec3, alpha: Vec3, order: int) -> tuple[Stages4, Vec3]:
+    """``order`` (at most 4) equal first-order stages in series: new stages and the output."""
+    s0, s1, s2, s3 = stages
+    y = u
+    if order > 0:
+        s0 = lowpass_step(s0, y, alpha)
+        y = s0
+    if order > 1:
+        s1 = lowpass_step(s1, y, alpha)
+        y = s1
+    if order > 2:
+        s2 = lowpass_step(s2, y, alpha)
+        y = s2
+    if order > 3:
+        s3 = lowpass_step(s3, y, alpha)
+        y = s3
+    return (s0, s1, s2, s3), y
+
+
+def _alphas(bandwidth_rad_s: Vec3, dt_s: float) -> Vec3:
+    b = bandwidth_rad_s
+    return (lowpass_alpha(b[0], dt_s), lowpass_alpha(b[1], dt_s), lowpass_alpha(b[2], dt_s))
 
 
 class _Alpha:
@@ -52,10 +90,49 @@ class _Alpha:
 
     def __call__(self, dt_s: float) -> Vec3:
         if dt_s != self._dt:
-            b = self.bandwidth
-            self._alpha = (lowpass_alpha(b[0], dt_s), lowpass_alpha(b[1], dt_s), lowpass_alpha(b[2], dt_s))
+            self._alpha = _alphas(self.bandwidth, dt_s)
             self._dt = dt_s
         return self._alpha
+
+
+# --- torque observer (15), (19) ---------------------------------------------------------------
+
+
+class TorqueObserverState(NamedTuple):
+    estimate_nm: Vec3
+    omega_prev: Vec3
+    primed: bool
+    """``omega_prev`` holds a rate (false before the first update)"""
+
+
+@jitable
+def torque_observer_init() -> TorqueObserverState:
+    return TorqueObserverState(ZERO3, ZERO3, False)
+
+
+@jitable
+def torque_measure(inertia_kg_m2: Vec3, omega_rad_s: Vec3, omega_prev: Vec3, torque_applied_prev_nm: Vec3,
+                   dt_s: float) -> Vec3:
+    """``h_meas = J0 (w - w_prev) / dt - tau_applied,k-1 + w x J0 w``, the raw measurement of (15)."""
+    j, w, prev, tau = inertia_kg_m2, omega_rad_s, omega_prev, torque_applied_prev_nm
+    inv_dt = 1.0 / dt_s
+    jw0, jw1, jw2 = j[0] * w[0], j[1] * w[1], j[2] * w[2]
+    return (
+        j[0] * (w[0] - prev[0]) * inv_dt - tau[0] + (w[1] * jw2 - w[2] * jw1),
+        j[1] * (w[1] - prev[1]) * inv_dt - tau[1] + (w[2] * jw0 - w[0] * jw2),
+        j[2] * (w[2] - prev[2]) * inv_dt - tau[2] + (w[0] * jw1 - w[1] * jw0),
+    )
+
+
+@jitable
+def torque_observer_step(st: TorqueObserverState, inertia_kg_m2: Vec3, alpha: Vec3, omega_rad_s: Vec3,
+                         torque_applied_prev_nm: Vec3, dt_s: float, model_torque_nm: Vec3) -> TorqueObserverState:
+    """One step of (15), (19); ``model_torque_nm`` is a known torque (e.g. drag) to leave out."""
+    if not st.primed:
+        return TorqueObserverState(st.estimate_nm, omega_rad_s, True)
+    h_meas = sub(torque_measure(inertia_kg_m2, omega_rad_s, st.omega_prev, torque_applied_prev_nm, dt_s),
+                 model_torque_nm)
+    return TorqueObserverState(lowpass_step(st.estimate_nm, h_meas, alpha), omega_rad_s, True)
 
 
 @dataclass
@@ -64,48 +141,99 @@ class TorqueObserver:
 
     ``h_meas,k = J0 omega_dot_k - tau_applied,k-1 + omega_k x (J0 omega_k)``  (15)
     with ``omega_dot_k = (omega_k - omega_k-1) / dt``: the backward difference is the mean
-    acceleration over the step in which ``tau_applied,k-1`` acted.
+    acceleration over the step in which ``tau_applied,k-1`` acted. A wrapper around
+    :func:`torque_observer_step`.
     """
 
     inertia_kg_m2: Vec3
     bandwidth_rad_s: Vec3
-    estimate_nm: Vec3 = ZERO3
-    _omega_prev: Vec3 | None = field(default=None, repr=False)
+    state: TorqueObserverState = field(default_factory=torque_observer_init, repr=False)
     _alpha: _Alpha = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self._alpha = _Alpha(self.bandwidth_rad_s)
 
+    @property
+    def estimate_nm(self) -> Vec3:
+        return self.state.estimate_nm
+
     def reset(self) -> None:
-        self.estimate_nm = ZERO3
-        self._omega_prev = None
+        self.state = torque_observer_init()
 
     def measure(self, omega_rad_s: Vec3, torque_applied_prev_nm: Vec3, dt_s: float) -> Vec3 | None:
         """The raw measurement of (15); ``None`` on the first call (no rate difference yet)."""
-        prev = self._omega_prev
-        self._omega_prev = omega_rad_s
-        if prev is None:
+        st = self.state
+        self.state = TorqueObserverState(st.estimate_nm, omega_rad_s, True)
+        if not st.primed:
             return None
-        j, w, tau = self.inertia_kg_m2, omega_rad_s, torque_applied_prev_nm
-        inv_dt = 1.0 / dt_s
-        jw0, jw1, jw2 = j[0] * w[0], j[1] * w[1], j[2] * w[2]
-        # J0 (w - w_prev) / dt - tau + w x J0 w
-        return (
-            j[0] * (w[0] - prev[0]) * inv_dt - tau[0] + (w[1] * jw2 - w[2] * jw1),
-            j[1] * (w[1] - prev[1]) * inv_dt - tau[1] + (w[2] * jw0 - w[0] * jw2),
-            j[2] * (w[2] - prev[2]) * inv_dt - tau[2] + (w[0] * jw1 - w[1] * jw0),
-        )
+        return torque_measure(self.inertia_kg_m2, omega_rad_s, st.omega_prev, torque_applied_prev_nm, dt_s)
 
     def update(
         self, omega_rad_s: Vec3, torque_applied_prev_nm: Vec3, dt_s: float, model_torque_nm: Vec3 = ZERO3
     ) -> Vec3:
         """Advance one step; ``model_torque_nm`` is a known torque (e.g. drag) to leave out."""
-        h_meas = self.measure(omega_rad_s, torque_applied_prev_nm, dt_s)
-        if h_meas is not None:
-            if model_torque_nm is not ZERO3:
-                h_meas = sub(h_meas, model_torque_nm)
-            self.estimate_nm = lowpass_step(self.estimate_nm, h_meas, self._alpha(dt_s))
-        return self.estimate_nm
+        self.state = torque_observer_step(self.state, self.inertia_kg_m2, self._alpha(dt_s), omega_rad_s,
+                                          torque_applied_prev_nm, dt_s, model_torque_nm)
+        return self.state.estimate_nm
+
+
+# --- the matching filter: the acceleration's delay and low-pass, applied to the force -------------
+
+MATCHING_CAPACITY = 16
+"""Longest delay line of :class:`MatchingFilter`, in steps (150 ms at the 100 Hz position loop)."""
+
+
+class MatchingConst(NamedTuple):
+    steps: int
+    """delay in steps"""
+    order: int
+    alpha: Vec3
+    active: bool
+
+
+class MatchingState(NamedTuple):
+    line: tuple[Vec3, ...]
+    """the last MATCHING_CAPACITY inputs, newest last (all the first input until that many arrived)"""
+    stages: Stages4
+    primed: bool
+
+
+def matching_const(delay_s: float, cutoff_hz: float, order: int, dt_s: float) -> MatchingConst:
+    steps = int(round(delay_s / dt_s))
+    if steps >= MATCHING_CAPACITY:
+        raise ValueError(f"matching delay {delay_s} s is {steps} steps of {dt_s} s; at most "
+                         f"{MATCHING_CAPACITY - 1} are kept")
+    if order > 4:
+        raise ValueError(f"matching filter order {order}: at most 4")
+    filtered = cutoff_hz > 0.0 and order > 0
+    a = lowpass_alpha(2.0 * math.pi * cutoff_hz, dt_s) if filtered else 0.0
+    return MatchingConst(steps, order if filtered else 0, (a, a, a), delay_s > 0.0 or cutoff_hz > 0.0)
+
+
+@jitable
+def _filled(u: Vec3) -> tuple[Vec3, ...]:
+    """A delay line of MATCHING_CAPACITY copies of ``u`` (written out: compiled code has no ``tuple * n``)."""
+    return (u, u, u, u, u, u, u, u, u, u, u, u, u, u, u, u)
+
+
+@jitable
+def matching_init() -> MatchingState:
+    return MatchingState(_filled(ZERO3), ZERO_STAGES, False)
+
+
+@jitable
+def matching_step(c: MatchingConst, st: MatchingState, u: Vec3) -> tuple[MatchingState, Vec3]:
+    """``u`` through the delay, then ``order`` first-order stages (which start at the first output)."""
+    if not st.primed:
+        line = _filled(u)
+    else:
+        line = st.line[1:] + (u,)
+    y = line[MATCHING_CAPACITY - 1 - c.steps]
+    stages = st.stages
+    if not st.primed:
+        stages = (y, y, y, y)
+    stages, y = lowpass_chain(stages, y, c.alpha, c.order)
+    return MatchingState(line, stages, True), y
 
 
 @dataclass
@@ -114,39 +242,80 @@ class MatchingFilter:
 
     Model of how the acceleration measurement was obtained (e.g. 60 Hz positions, 10 ms late,
     differenced twice through 5 Hz filters: about 30 ms and two 5 Hz poles), applied to the
-    force input of (30). The first input fills the state, so nothing rings at start.
+    force input of (30). The first input fills the state, so nothing rings at start. A wrapper
+    around :func:`matching_step`.
     """
 
     delay_s: float = 0.0
     cutoff_hz: float = 0.0
     order: int = 2
-    _line: deque[Vec3] = field(default_factory=deque, repr=False)
-    _stages: list[Vec3] = field(default_factory=list, repr=False)
+    state: MatchingState = field(default_factory=matching_init, repr=False)
+    _const: MatchingConst | None = field(default=None, repr=False)
+    _dt: float = field(default=-1.0, repr=False)
 
     @property
     def active(self) -> bool:
         return self.delay_s > 0.0 or self.cutoff_hz > 0.0
 
+    def const(self, dt_s: float) -> MatchingConst:
+        c = self._const
+        if c is None or self._dt != dt_s:
+            c = self._const = matching_const(self.delay_s, self.cutoff_hz, self.order, dt_s)
+            self._dt = dt_s
+        return c
+
     def reset(self) -> None:
-        self._line.clear()
-        self._stages = []
+        self.state = matching_init()
 
     def update(self, u: Vec3, dt_s: float) -> Vec3:
-        steps = int(round(self.delay_s / dt_s))
-        line = self._line
-        line.append(u)
-        while len(line) > steps + 1:
-            line.popleft()
-        y = line[0]
-        if self.cutoff_hz <= 0.0 or self.order <= 0:
-            return y
-        if not self._stages:
-            self._stages = [y] * self.order
-        a = lowpass_alpha(2.0 * math.pi * self.cutoff_hz, dt_s)
-        alpha: Vec3 = (a, a, a)
-        for i in range(self.order):
-            y = self._stages[i] = lowpass_step(self._stages[i], y, alpha)
+        self.state, y = matching_step(self.const(dt_s), self.state, u)
         return y
+
+
+# --- force observer (30) ------------------------------------------------------------------------
+
+
+class ForceObserverConst(NamedTuple):
+    mass_kg: Real
+    alpha: Vec3
+    order: int
+    matching: MatchingConst
+
+
+class ForceObserverState(NamedTuple):
+    estimate_n: Vec3
+    stages: Stages4
+    matching: MatchingState
+
+
+def force_observer_const(mass_kg: Real, bandwidth_rad_s: Vec3, order: int, matching: MatchingConst,
+                         dt_s: float) -> ForceObserverConst:
+    if not 1 <= order <= 4:
+        raise ValueError(f"force observer order {order}: expected 1 to 4")
+    return ForceObserverConst(mass_kg, _alphas(bandwidth_rad_s, dt_s), order, matching)
+
+
+@jitable
+def force_observer_init() -> ForceObserverState:
+    return ForceObserverState(ZERO3, ZERO_STAGES, matching_init())
+
+
+@jitable
+def force_measure(mass_kg: Real, specific_force_ned_m_s2: Vec3, force_ned_n: Vec3) -> Vec3:
+    """``m0 (r_dd - g e3) - f``: the raw disturbance measurement of (30) [N]."""
+    return sub(scale(mass_kg, specific_force_ned_m_s2), force_ned_n)
+
+
+@jitable
+def force_observer_step(c: ForceObserverConst, st: ForceObserverState, specific_force_ned_m_s2: Vec3,
+                        force_applied_ned_n: Vec3, model_force_n: Vec3) -> ForceObserverState:
+    """``h_hat' = Gamma (m0 (r_dd - g e3) - f - h_hat)``  (30), through ``order`` equal stages."""
+    matching = st.matching
+    if c.matching.active:
+        matching, force_applied_ned_n = matching_step(c.matching, matching, force_applied_ned_n)
+    h_meas = sub(force_measure(c.mass_kg, specific_force_ned_m_s2, force_applied_ned_n), model_force_n)
+    stages, y = lowpass_chain(st.stages, h_meas, c.alpha, c.order)
+    return ForceObserverState(y, stages, matching)
 
 
 @dataclass
@@ -156,30 +325,38 @@ class ForceObserver:
     ``h_meas = m0 (r_ddot - g e3) - f``, where ``r_ddot - g e3`` is the accelerometer's
     specific force rotated into NED (or differentiated position minus gravity) and ``f`` is the
     force the vehicle was asked for: the paper's commanded ``-T R(q_d) e3``, or ``-T R(q) e3``
-    along the measured attitude (``PositionGains.force_source``).
+    along the measured attitude (``PositionGains.force_source``). A wrapper around
+    :func:`force_observer_step`.
     """
 
     mass_kg: float | Real
     bandwidth_rad_s: Vec3
-    estimate_n: Vec3 = ZERO3
     matching: MatchingFilter = field(default_factory=MatchingFilter)
     """the acceleration's delay and filter, applied to the force (see the module docstring)"""
     order: int = 1
     """equal first-order stages of the low-pass (1: (19); 2: INDI's second-order filter)"""
-    _alpha: _Alpha = field(init=False, repr=False)
-    _stages: list[Vec3] = field(default_factory=list, repr=False)
+    state: ForceObserverState = field(default_factory=force_observer_init, repr=False)
+    _const: ForceObserverConst | None = field(default=None, repr=False)
+    _dt: float = field(default=-1.0, repr=False)
 
-    def __post_init__(self) -> None:
-        self._alpha = _Alpha(self.bandwidth_rad_s)
+    def const(self, dt_s: float) -> ForceObserverConst:
+        c = self._const
+        if c is None or self._dt != dt_s:
+            c = self._const = force_observer_const(self.mass_kg, self.bandwidth_rad_s, self.order,
+                                                   self.matching.const(dt_s), dt_s)
+            self._dt = dt_s
+        return c
+
+    @property
+    def estimate_n(self) -> Vec3:
+        return self.state.estimate_n
 
     def reset(self) -> None:
-        self.estimate_n = ZERO3
-        self._stages = []
-        self.matching.reset()
+        self.state = force_observer_init()
 
     def measure(self, specific_force_ned_m_s2: Vec3, force_ned_n: Vec3) -> Vec3:
         """``m0 (r_dd - g e3) - f``: the raw disturbance measurement of (30) [N]."""
-        return sub(scale(self.mass_kg, specific_force_ned_m_s2), force_ned_n)
+        return force_measure(self.mass_kg, specific_force_ned_m_s2, force_ned_n)
 
     def update(
         self, specific_force_ned_m_s2: Vec3, force_applied_ned_n: Vec3, dt_s: float,
@@ -192,22 +369,49 @@ class ForceObserver:
         the rotors were asked for (or produced), ``model_force_n`` a known force (drag) to
         leave out. Returns the estimate [N, NED].
         """
-        if self.matching.active:
-            force_applied_ned_n = self.matching.update(force_applied_ned_n, dt_s)
-        h_meas = self.measure(specific_force_ned_m_s2, force_applied_ned_n)
-        if model_force_n is not ZERO3:
-            h_meas = sub(h_meas, model_force_n)
-        alpha = self._alpha(dt_s)
-        if self.order == 1:
-            self.estimate_n = lowpass_step(self.estimate_n, h_meas, alpha)
-            return self.estimate_n
-        if not self._stages:
-            self._stages = [ZERO3] * self.order
-        y = h_meas
-        for i in range(self.order):
-            y = self._stages[i] = lowpass_step(self._stages[i], y, alpha)
-        self.estimate_n = y
-        return y
+        self.state = st = force_observer_step(self.const(dt_s), self.state, specific_force_ned_m_s2,
+                                              force_applied_ned_n, model_force_n)
+        return st.estimate_n
+
+
+# --- the momentum form of (30) --------------------------------------------------------------------
+
+
+class MomentumConst(NamedTuple):
+    mass_kg: Real
+    gamma: Vec3
+    matching: MatchingConst
+
+
+class MomentumState(NamedTuple):
+    estimate_n: Vec3
+    p_hat: Vec3
+    primed: bool
+    matching: MatchingState
+
+
+@jitable
+def momentum_init() -> MomentumState:
+    return MomentumState(ZERO3, ZERO3, False, matching_init())
+
+
+@jitable
+def momentum_step(c: MomentumConst, st: MomentumState, vel_m_s: Vec3, force_n: Vec3, known_accel_m_s2: Vec3,
+                  dt_s: float) -> MomentumState:
+    """``h_hat = Gamma (m0 v - p_hat)``, ``p_hat' = f + m0 a_known + h_hat`` over the step that ended."""
+    m, g = c.mass_kg, c.gamma
+    momentum = scale(m, vel_m_s)
+    matching = st.matching
+    if c.matching.active:
+        matching, force_n = matching_step(c.matching, matching, force_n)
+    if not st.primed:  # no step behind us yet: the model starts where the vehicle is
+        return MomentumState(st.estimate_n, momentum, True, matching)
+    a, h, p = known_accel_m_s2, st.estimate_n, st.p_hat
+    p = (p[0] + dt_s * (force_n[0] + m * a[0] + h[0]),
+         p[1] + dt_s * (force_n[1] + m * a[1] + h[1]),
+         p[2] + dt_s * (force_n[2] + m * a[2] + h[2]))
+    estimate = (g[0] * (momentum[0] - p[0]), g[1] * (momentum[1] - p[1]), g[2] * (momentum[2] - p[2]))
+    return MomentumState(estimate, p, True, matching)
 
 
 @dataclass
@@ -219,38 +423,80 @@ class MomentumObserver:
     velocity is used as it is (the generalised-momentum observer). ``a_known`` is whatever
     acceleration the model knows besides ``f / m0`` (gravity ``g e3``; minus the reference's
     acceleration when ``v`` is a velocity error). The force passes through ``matching``, the
-    velocity's own delay and filter (see the module docstring).
+    velocity's own delay and filter (see the module docstring). A wrapper around
+    :func:`momentum_step`.
     """
 
     mass_kg: float | Real
     bandwidth_rad_s: Vec3
-    estimate_n: Vec3 = ZERO3
     matching: MatchingFilter = field(default_factory=MatchingFilter)
-    _p_hat: Vec3 | None = field(default=None, repr=False)
+    state: MomentumState = field(default_factory=momentum_init, repr=False)
+
+    @property
+    def estimate_n(self) -> Vec3:
+        return self.state.estimate_n
+
+    def const(self, dt_s: float) -> MomentumConst:
+        return MomentumConst(self.mass_kg, self.bandwidth_rad_s, self.matching.const(dt_s))
 
     def reset(self) -> None:
-        self.estimate_n = ZERO3
-        self._p_hat = None
-        self.matching.reset()
+        self.state = momentum_init()
 
     def update(self, vel_m_s: Vec3, force_n: Vec3, known_accel_m_s2: Vec3, dt_s: float) -> Vec3:
         """Advance over the step that just ended: ``vel_m_s`` now, ``force_n`` and
         ``known_accel_m_s2`` as they acted during that step. Returns the estimate [N]."""
-        m, g = self.mass_kg, self.bandwidth_rad_s
-        momentum = scale(m, vel_m_s)
-        if self.matching.active:
-            force_n = self.matching.update(force_n, dt_s)
-        p = self._p_hat
-        if p is None:  # no step behind us yet: the model starts where the vehicle is
-            self._p_hat = momentum
-            return self.estimate_n
-        a, h = known_accel_m_s2, self.estimate_n
-        p = (p[0] + dt_s * (force_n[0] + m * a[0] + h[0]),
-             p[1] + dt_s * (force_n[1] + m * a[1] + h[1]),
-             p[2] + dt_s * (force_n[2] + m * a[2] + h[2]))
-        self._p_hat = p
-        self.estimate_n = (g[0] * (momentum[0] - p[0]), g[1] * (momentum[1] - p[1]), g[2] * (momentum[2] - p[2]))
-        return self.estimate_n
+        self.state = momentum_step(self.const(dt_s), self.state, vel_m_s, force_n, known_accel_m_s2, dt_s)
+        return self.state.estimate_n
+
+
+# --- INDI's incremental measurement ---------------------------------------------------------------
+
+
+class IncrementalConst(NamedTuple):
+    inertia_kg_m2: Vec3
+    alpha: Vec3
+    """the second-order filter's stage gain"""
+    actuator_alpha: Vec3
+    """the rotors' first-order lag over a step"""
+
+
+class IncrementalState(NamedTuple):
+    estimate_nm: Vec3
+    omega_prev: Vec3
+    primed: bool
+    actuator: Vec3
+    stages: Stages4
+
+
+def incremental_const(inertia_kg_m2: Vec3, filter_rad_s: float, actuator_time_constant_s: float,
+                      dt_s: float) -> IncrementalConst:
+    tc = actuator_time_constant_s
+    a_act = 1.0 - math.exp(-dt_s / tc) if tc > 0.0 else 1.0
+    a = lowpass_alpha(filter_rad_s, dt_s)
+    return IncrementalConst(inertia_kg_m2, (a, a, a), (a_act, a_act, a_act))
+
+
+@jitable
+def incremental_init() -> IncrementalState:
+    return IncrementalState(ZERO3, ZERO3, False, ZERO3, ZERO_STAGES)
+
+
+@jitable
+def incremental_step(c: IncrementalConst, st: IncrementalState, omega_rad_s: Vec3, torque_applied_prev_nm: Vec3,
+                     dt_s: float) -> IncrementalState:
+    actuator = lowpass_step(st.actuator, torque_applied_prev_nm, c.actuator_alpha)
+    if not st.primed:
+        return IncrementalState(st.estimate_nm, omega_rad_s, True, actuator, st.stages)
+    j, inv, prev = c.inertia_kg_m2, 1.0 / dt_s, st.omega_prev
+    j_w_dot = (j[0] * (omega_rad_s[0] - prev[0]) * inv, j[1] * (omega_rad_s[1] - prev[1]) * inv,
+               j[2] * (omega_rad_s[2] - prev[2]) * inv)
+    alpha = c.alpha
+    s0, s1, s2, s3 = st.stages
+    s0 = lowpass_step(s0, j_w_dot, alpha)
+    s1 = lowpass_step(s1, s0, alpha)
+    s2 = lowpass_step(s2, actuator, alpha)
+    s3 = lowpass_step(s3, s2, alpha)
+    return IncrementalState(sub(s1, s3), omega_rad_s, True, actuator, (s0, s1, s2, s3))
 
 
 @dataclass
@@ -262,40 +508,32 @@ class IncrementalTorque:
     and ``tau_f`` the applied torque through the rotors' first-order lag (the actuator model),
     both through the same second-order low-pass (two equal first-order stages): filtered alike,
     their difference holds no filter lag of the control's own action. No model of the body is
-    used: gyroscopic torque, inertia error and disturbances all arrive in ``w'``.
+    used: gyroscopic torque, inertia error and disturbances all arrive in ``w'``. A wrapper
+    around :func:`incremental_step`.
     """
 
     inertia_kg_m2: Vec3
     filter_rad_s: float
     actuator_time_constant_s: float
-    estimate_nm: Vec3 = ZERO3
-    _omega_prev: Vec3 | None = field(default=None, repr=False)
-    _actuator: Vec3 = ZERO3
-    _stages: list[Vec3] = field(default_factory=lambda: [ZERO3, ZERO3, ZERO3, ZERO3], repr=False)
+    state: IncrementalState = field(default_factory=incremental_init, repr=False)
+    _const: IncrementalConst | None = field(default=None, repr=False)
+    _dt: float = field(default=-1.0, repr=False)
+
+    @property
+    def estimate_nm(self) -> Vec3:
+        return self.state.estimate_nm
+
+    def const(self, dt_s: float) -> IncrementalConst:
+        c = self._const
+        if c is None or self._dt != dt_s:
+            c = self._const = incremental_const(self.inertia_kg_m2, self.filter_rad_s,
+                                                self.actuator_time_constant_s, dt_s)
+            self._dt = dt_s
+        return c
 
     def reset(self) -> None:
-        self.estimate_nm = ZERO3
-        self._omega_prev = None
-        self._actuator = ZERO3
-        self._stages = [ZERO3, ZERO3, ZERO3, ZERO3]
+        self.state = incremental_init()
 
     def update(self, omega_rad_s: Vec3, torque_applied_prev_nm: Vec3, dt_s: float) -> Vec3:
-        prev = self._omega_prev
-        self._omega_prev = omega_rad_s
-        tc = self.actuator_time_constant_s
-        a_act = 1.0 - math.exp(-dt_s / tc) if tc > 0.0 else 1.0
-        self._actuator = lowpass_step(self._actuator, torque_applied_prev_nm, (a_act, a_act, a_act))
-        if prev is None:
-            return self.estimate_nm
-        j, inv = self.inertia_kg_m2, 1.0 / dt_s
-        j_w_dot = (j[0] * (omega_rad_s[0] - prev[0]) * inv, j[1] * (omega_rad_s[1] - prev[1]) * inv,
-                   j[2] * (omega_rad_s[2] - prev[2]) * inv)
-        a = lowpass_alpha(self.filter_rad_s, dt_s)
-        alpha: Vec3 = (a, a, a)
-        st = self._stages
-        st[0] = lowpass_step(st[0], j_w_dot, alpha)
-        st[1] = lowpass_step(st[1], st[0], alpha)
-        st[2] = lowpass_step(st[2], self._actuator, alpha)
-        st[3] = lowpass_step(st[3], st[2], alpha)
-        self.estimate_nm = sub(st[1], st[3])
-        return self.estimate_nm
+        self.state = incremental_step(self.const(dt_s), self.state, omega_rad_s, torque_applied_prev_nm, dt_s)
+        return self.state.estimate_nm

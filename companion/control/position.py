@@ -39,11 +39,24 @@ literal reading for comparison.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from .attitude import _integrate_with_reset
-from .observers import ForceObserver, MatchingFilter, MomentumObserver
+from .jit import jitable
+from .observers import (
+    ForceObserverConst,
+    ForceObserverState,
+    MomentumConst,
+    MomentumState,
+    force_observer_const,
+    force_observer_init,
+    force_observer_step,
+    matching_const,
+    momentum_init,
+    momentum_step,
+)
 from .params import PositionGains
 from .vector import (
     ZERO3,
@@ -62,10 +75,17 @@ __all__ = [
     "aibc_coefficients",
     "aibc_coefficients_per_vehicle",
     "nominal_force",
+    "PositionConst",
+    "PositionState",
+    "position_const",
+    "position_init",
+    "position_step",
     "PositionController",
 ]
 
 POSITION_CONTROLLERS = ("pid", "aibc", "pd_do", "ism_do", "indi")
+PID, AIBC, PD_DO, ISM_DO, INDI = 0, 1, 2, 3, 4
+"""``PositionConst.kind``: the index in POSITION_CONTROLLERS."""
 
 
 def aibc_coefficients(omega_c_rad_s: float) -> tuple[float, float, float]:
@@ -102,6 +122,7 @@ def aibc_coefficients_per_vehicle(omega_c_rad_s: Real) -> tuple[Real, Real, Real
     return aibc_coefficients(omega_c_rad_s)
 
 
+@jitable
 def nominal_force(
     mass_kg: Real, gravity_m_s2: float, accel_ref: Vec3, pos_err: Vec3, vel_err: Vec3, k_p: Vec3, k_v: Vec3
 ) -> Vec3:
@@ -113,6 +134,171 @@ def nominal_force(
     )
 
 
+class PositionConst(NamedTuple):
+    """What :func:`position_step` needs besides its state: gains derived for one step length."""
+
+    kind: int
+    mass_kg: Real
+    gravity_m_s2: float
+    k_p: Vec3
+    k_v: Vec3
+    k_i: Vec3
+    aibc_p: Vec3
+    aibc_v: Vec3
+    aibc_i: Vec3
+    aibc_velocity_feedback: bool
+    aibc_gamma_per_s: Vec3
+    k_f: Vec3
+    eps: Vec3
+    anti_windup: bool
+    integral_limit_m_s2: float
+    observer: ForceObserverConst
+    aibc_observer: MomentumConst
+    dt_s: float
+
+
+class PositionState(NamedTuple):
+    xi: Vec3
+    """integral of the position error [m s] (PID, AIBC)"""
+    z: Vec3
+    """ISM integral state of (31) [m/s]"""
+    s: Vec3
+    estimate_n: Vec3
+    """what the controller currently attributes to disturbance [N] (for logs and metrics)"""
+    started: bool
+    observer: ForceObserverState
+    aibc_observer: MomentumState
+
+
+def position_const(kind: str, gains: PositionGains, mass_kg: Real, gravity_m_s2: float, dt_s: float) -> PositionConst:
+    if kind not in POSITION_CONTROLLERS:
+        raise ValueError(f"unknown position controller {kind!r}; expected one of {POSITION_CONTROLLERS}")
+    g = gains
+    matching = matching_const(g.observer_match_delay_s, g.observer_match_cutoff_hz, g.observer_match_order, dt_s)
+    observer = force_observer_const(mass_kg, g.observer_gain_rad_s, 1, matching, dt_s)
+    if kind == "indi":  # INDI: the same measurement, through a second-order filter
+        observer = force_observer_const(mass_kg, g.indi_filter_rad_s, 2, matching, dt_s)
+    # the velocity has one difference and one filter less than the acceleration
+    vel_matching = matching_const(g.observer_match_delay_s, g.observer_match_cutoff_hz,
+                                  max(g.observer_match_order - 1, 0), dt_s)
+    aibc_p = aibc_v = aibc_i = ZERO3
+    if kind == "aibc":
+        coeffs = [aibc_coefficients_per_vehicle(w) for w in g.omega_c_rad_s]
+        c1 = tuple(c[0] for c in coeffs)
+        c2 = tuple(c[1] for c in coeffs)
+        lam = tuple(c[2] for c in coeffs)
+        aibc_p = tuple(1.0 + lam[i] + c1[i] * c2[i] for i in range(3))  # type: ignore[assignment]
+        aibc_v = tuple(c1[i] + c2[i] for i in range(3))  # type: ignore[assignment]
+        aibc_i = tuple(c2[i] * lam[i] for i in range(3))  # type: ignore[assignment]
+    eps = g.boundary_layer_m_s
+    return PositionConst(
+        kind=POSITION_CONTROLLERS.index(kind),
+        mass_kg=mass_kg,
+        gravity_m_s2=gravity_m_s2,
+        k_p=g.k_p(),
+        k_v=g.k_v(),
+        k_i=g.k_i(),
+        aibc_p=aibc_p,
+        aibc_v=aibc_v,
+        aibc_i=aibc_i,
+        aibc_velocity_feedback=g.aibc_estimate == "velocity_feedback",
+        aibc_gamma_per_s=g.aibc_gamma_per_s,
+        k_f=mul(scale(mass_kg, g.sliding_gain_rad_s), eps),  # K_f = k_s m0 eps
+        eps=eps,
+        anti_windup=g.anti_windup,
+        integral_limit_m_s2=g.integral_limit_m_s2,
+        observer=observer,
+        aibc_observer=MomentumConst(mass_kg, g.aibc_gamma_per_s, vel_matching),
+        dt_s=dt_s,
+    )
+
+
+@jitable
+def position_init() -> PositionState:
+    return PositionState(ZERO3, ZERO3, ZERO3, ZERO3, False, force_observer_init(), momentum_init())
+
+
+@jitable
+def position_step(
+    c: PositionConst,
+    st: PositionState,
+    pos_err_m: Vec3,
+    vel_err_m_s: Vec3,
+    accel_ref_m_s2: Vec3,
+    specific_force_ned_m_s2: Vec3,
+    has_specific_force: bool,
+    force_applied_prev_n: Vec3,
+) -> tuple[PositionState, Vec3]:
+    """One position step: the new state and the force f [N, NED].
+
+    ``specific_force_ned_m_s2`` is ``r_dd - g e3`` (accelerometer rotated to NED, or differentiated
+    position minus gravity; ignored unless ``has_specific_force``), ``force_applied_prev_n`` the
+    previous step's force as the gains' ``force_source`` asks
+    (:func:`~companion.control.outer_loop.observer_force`): the force observer's inputs (30).
+    """
+    kind, m0, g, dt_s = c.kind, c.mass_kg, c.gravity_m_s2, c.dt_s
+    if kind == PID:
+        f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, c.k_p, c.k_v)
+        xi, integral = _integrate(c, st.xi, pos_err_m, c.k_i)
+        estimate = scale(m0, integral)
+        return PositionState(xi, st.z, st.s, estimate, st.started, st.observer, st.aibc_observer), sub(f, estimate)
+    if kind == AIBC:
+        f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, c.aibc_p, c.aibc_v)
+        xi, integral = _integrate(c, st.xi, pos_err_m, c.aibc_i)
+        aibc_observer = st.aibc_observer
+        if c.aibc_velocity_feedback:
+            estimate = scale(m0, mul(c.aibc_gamma_per_s, vel_err_m_s))
+        else:  # the velocity-error model: v~' = f / m0 + g e3 - r_dd_d + h / m0
+            known = (-accel_ref_m_s2[0], -accel_ref_m_s2[1], g - accel_ref_m_s2[2])
+            aibc_observer = momentum_step(c.aibc_observer, aibc_observer, vel_err_m_s, force_applied_prev_n, known,
+                                          dt_s)
+            estimate = aibc_observer.estimate_n
+        st = PositionState(xi, st.z, st.s, estimate, st.started, st.observer, aibc_observer)
+        return st, sub(sub(f, scale(m0, integral)), estimate)
+    f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, c.k_p, c.k_v)
+    observer, estimate = st.observer, st.estimate_n
+    if has_specific_force:
+        observer = force_observer_step(c.observer, observer, specific_force_ned_m_s2, force_applied_prev_n, ZERO3)
+        estimate = observer.estimate_n
+    f = sub(f, estimate)
+    z, s, started = st.z, st.s, st.started
+    if kind == ISM_DO:
+        z, s, started, term = _sliding_term(c, z, started, pos_err_m, vel_err_m_s)
+        f = sub(f, term)
+    return PositionState(st.xi, z, s, estimate, started, observer, st.aibc_observer), f
+
+
+@jitable
+def _integrate(c: PositionConst, xi: Vec3, pos_err_m: Vec3, k_i: Vec3) -> tuple[Vec3, Vec3]:
+    """``(xi, K_i xi)`` after one step, each element held within ``integral_limit_m_s2`` (anti-windup)."""
+    xi = add(xi, scale(c.dt_s, pos_err_m))
+    if c.anti_windup:
+        lim = c.integral_limit_m_s2
+        xi = (
+            clip(xi[0], -lim / k_i[0], lim / k_i[0]),
+            clip(xi[1], -lim / k_i[1], lim / k_i[1]),
+            clip(xi[2], -lim / k_i[2], lim / k_i[2]),
+        )
+    return xi, mul(k_i, xi)
+
+
+@jitable
+def _sliding_term(c: PositionConst, z: Vec3, started: bool, pos_err_m: Vec3,
+                  vel_err_m_s: Vec3) -> tuple[Vec3, Vec3, bool, Vec3]:
+    """``K_f sat(s_p / eps_p)``, ``s_p = v~ + K_v r~ + int K_p r~ - v~(0) - K_v r~(0)``  (31).
+
+    Same anti-windup as the attitude loop: an element outside the layer is reset so that it
+    restarts from zero, instead of winding up at force onset and release.
+    """
+    eps = c.eps
+    s0 = add(vel_err_m_s, mul(c.k_v, pos_err_m))
+    if not started:
+        z = (-s0[0], -s0[1], -s0[2])
+    s = add(s0, z)
+    z = _integrate_with_reset(z, s, s0, mul(c.k_p, pos_err_m), eps, c.dt_s, c.anti_windup)
+    return z, s, True, mul(c.k_f, sat(s, eps))
+
+
 @dataclass
 class PositionController:
     """One of POSITION_CONTROLLERS; :meth:`update` returns the force f [N, NED].
@@ -120,52 +306,43 @@ class PositionController:
     ``specific_force_ned`` is ``r_dd - g e3`` (accelerometer rotated to NED, or differentiated
     position minus gravity), ``force_applied_prev_n`` the previous step's force as the gains'
     ``force_source`` asks (:func:`~companion.control.outer_loop.observer_force`): the force
-    observer's inputs (30).
+    observer's inputs (30). A thin wrapper around :func:`position_step` holding its state.
     """
 
     kind: str
     gains: PositionGains
     mass_kg: Real
     gravity_m_s2: float = 9.81
-    xi: Vec3 = ZERO3
-    """integral of the position error [m s] (PID, AIBC)"""
-    z: Vec3 = ZERO3
-    """ISM integral state of (31) [m/s]"""
-    s: Vec3 = ZERO3
-    estimate_n: Vec3 = ZERO3
-    """what the controller currently attributes to disturbance [N] (for logs and metrics)"""
-    _started: bool = field(default=False, repr=False)
-    observer: ForceObserver = field(init=False)
+    state: PositionState = field(default_factory=position_init, repr=False)
+    _const: PositionConst | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        if self.kind not in POSITION_CONTROLLERS:
-            raise ValueError(f"unknown position controller {self.kind!r}; expected one of {POSITION_CONTROLLERS}")
-        g = self.gains
-        self._k_v, self._k_p, self._k_i = g.k_v(), g.k_p(), g.k_i()
-        matching = MatchingFilter(g.observer_match_delay_s, g.observer_match_cutoff_hz, g.observer_match_order)
-        self.observer = ForceObserver(self.mass_kg, g.observer_gain_rad_s, matching=matching)
-        # the velocity has one difference and one filter less than the acceleration
-        vel_matching = MatchingFilter(g.observer_match_delay_s, g.observer_match_cutoff_hz,
-                                      max(g.observer_match_order - 1, 0))
-        self.aibc_observer = MomentumObserver(self.mass_kg, g.aibc_gamma_per_s, matching=vel_matching)
-        if self.kind == "indi":  # INDI: the same measurement, through a second-order filter
-            self.observer = ForceObserver(self.mass_kg, g.indi_filter_rad_s, matching=matching, order=2)
-        if self.kind == "aibc":
-            coeffs = [aibc_coefficients_per_vehicle(w) for w in g.omega_c_rad_s]
-            c1 = tuple(c[0] for c in coeffs)
-            c2 = tuple(c[1] for c in coeffs)
-            lam = tuple(c[2] for c in coeffs)
-            self._aibc_p = tuple(1.0 + lam[i] + c1[i] * c2[i] for i in range(3))
-            self._aibc_v = tuple(c1[i] + c2[i] for i in range(3))
-            self._aibc_i = tuple(c2[i] * lam[i] for i in range(3))
-        eps = g.boundary_layer_m_s
-        self._k_f = mul(scale(self.mass_kg, g.sliding_gain_rad_s), eps)  # K_f = k_s m0 eps
+        self.const(0.01)  # checks the kind and the gains
+
+    def const(self, dt_s: float) -> PositionConst:
+        c = self._const
+        if c is None or c.dt_s != dt_s:
+            c = self._const = position_const(self.kind, self.gains, self.mass_kg, self.gravity_m_s2, dt_s)
+        return c
+
+    @property
+    def xi(self) -> Vec3:
+        return self.state.xi
+
+    @property
+    def z(self) -> Vec3:
+        return self.state.z
+
+    @property
+    def s(self) -> Vec3:
+        return self.state.s
+
+    @property
+    def estimate_n(self) -> Vec3:
+        return self.state.estimate_n
 
     def reset(self) -> None:
-        self.xi = self.z = self.s = self.estimate_n = ZERO3
-        self._started = False
-        self.observer.reset()
-        self.aibc_observer.reset()
+        self.state = position_init()
 
     def update(
         self,
@@ -176,57 +353,8 @@ class PositionController:
         force_applied_prev_n: Vec3,
         dt_s: float,
     ) -> Vec3:
-        kind = self.kind
-        m0, g = self.mass_kg, self.gravity_m_s2
-        if kind == "pid":
-            f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, self._k_p, self._k_v)
-            integral = self._integrate(pos_err_m, self._k_i, dt_s)
-            self.estimate_n = scale(m0, integral)
-            return sub(f, self.estimate_n)
-        if kind == "aibc":
-            f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, self._aibc_p, self._aibc_v)  # type: ignore[arg-type]
-            integral = self._integrate(pos_err_m, self._aibc_i, dt_s)  # type: ignore[arg-type]
-            if self.gains.aibc_estimate == "velocity_feedback":
-                self.estimate_n = scale(m0, mul(self.gains.aibc_gamma_per_s, vel_err_m_s))
-            else:  # the velocity-error model: v~' = f / m0 + g e3 - r_dd_d + h / m0
-                known = (-accel_ref_m_s2[0], -accel_ref_m_s2[1], g - accel_ref_m_s2[2])
-                self.estimate_n = self.aibc_observer.update(vel_err_m_s, force_applied_prev_n, known, dt_s)
-            return sub(sub(f, scale(m0, integral)), self.estimate_n)
-        f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, self._k_p, self._k_v)
-        if specific_force_ned_m_s2 is not None:
-            self.estimate_n = self.observer.update(specific_force_ned_m_s2, force_applied_prev_n, dt_s)
-        f = sub(f, self.estimate_n)
-        if kind == "ism_do":
-            f = sub(f, self._sliding_term(pos_err_m, vel_err_m_s, dt_s))
+        has_sf = specific_force_ned_m_s2 is not None
+        self.state, f = position_step(self.const(dt_s), self.state, pos_err_m, vel_err_m_s, accel_ref_m_s2,
+                                      specific_force_ned_m_s2 if has_sf else ZERO3, has_sf,  # type: ignore[arg-type]
+                                      force_applied_prev_n)
         return f
-
-    def _integrate(self, pos_err_m: Vec3, k_i: Vec3, dt_s: float) -> Vec3:
-        """``K_i xi`` after one step, each element held within ``integral_limit_m_s2`` (anti-windup)."""
-        xi = add(self.xi, scale(dt_s, pos_err_m))
-        if self.gains.anti_windup:
-            lim = self.gains.integral_limit_m_s2
-            xi = (
-                clip(xi[0], -lim / k_i[0], lim / k_i[0]),
-                clip(xi[1], -lim / k_i[1], lim / k_i[1]),
-                clip(xi[2], -lim / k_i[2], lim / k_i[2]),
-            )
-        self.xi = xi
-        return mul(k_i, xi)
-
-    def _sliding_term(self, pos_err_m: Vec3, vel_err_m_s: Vec3, dt_s: float) -> Vec3:
-        """``K_f sat(s_p / eps_p)``, ``s_p = v~ + K_v r~ + int K_p r~ - v~(0) - K_v r~(0)``  (31).
-
-        Same anti-windup as the attitude loop: an element outside the layer is reset so that it
-        restarts from zero, instead of winding up at force onset and release.
-        """
-        eps = self.gains.boundary_layer_m_s
-        s0 = add(vel_err_m_s, mul(self._k_v, pos_err_m))
-        if not self._started:
-            self.z = (-s0[0], -s0[1], -s0[2])
-            self._started = True
-        z = self.z
-        s = add(s0, z)
-        self.s = s
-        self.z = _integrate_with_reset(z, s, s0, mul(self._k_p, pos_err_m), eps, dt_s, self.gains.anti_windup)
-        return mul(self._k_f, sat(s, eps))
-

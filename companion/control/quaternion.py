@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+from .jit import jitable
 from .vector import (
     Mat3,
     Real,
@@ -21,6 +22,7 @@ from .vector import (
     atan2,
     asin,
     cos,
+    is_scalar,
     maximum,
     sin,
     sqrt,
@@ -56,6 +58,7 @@ Quat = tuple[Real, Real, Real, Real]
 IDENTITY: Quat = (1.0, 0.0, 0.0, 0.0)
 
 
+@jitable
 def mul(a: Quat, b: Quat) -> Quat:
     """Hamilton product ``a ⊗ b``: first rotate by ``b``, then by ``a`` (as frames compose)."""
     aw, ax, ay, az = a
@@ -68,6 +71,7 @@ def mul(a: Quat, b: Quat) -> Quat:
     )
 
 
+@jitable
 def relative(a: Quat, b: Quat) -> Quat:
     """``a^* ⊗ b``: the rotation from frame ``a`` to frame ``b`` (error (5), increments of (34))."""
     aw, ax, ay, az = a
@@ -80,26 +84,31 @@ def relative(a: Quat, b: Quat) -> Quat:
     )
 
 
+@jitable
 def conj(q: Quat) -> Quat:
     """Conjugate ``q^*``: the inverse rotation of a unit quaternion."""
     return (q[0], -q[1], -q[2], -q[3])
 
 
+@jitable
 def norm(q: Quat) -> Real:
-    return (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) ** 0.5
+    return sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
 
 
+@jitable
 def normalize(q: Quat) -> Quat:
     n = norm(q)
     return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
 
 
+@jitable
 def positive_scalar(q: Quat) -> Quat:
     """``q`` or ``-q``, whichever has ``w >= 0`` (same rotation, shortest arc)."""
     s = where(q[0] < 0.0, -1.0, 1.0)
     return (s * q[0], s * q[1], s * q[2], s * q[3])
 
 
+@jitable
 def rotate(q: Quat, v: Vec3) -> Vec3:
     """``R(q) v``: a body vector expressed in the inertial frame."""
     w, x, y, z = q
@@ -114,6 +123,7 @@ def rotate(q: Quat, v: Vec3) -> Vec3:
     )
 
 
+@jitable
 def rotate_inverse(q: Quat, v: Vec3) -> Vec3:
     """``R(q)^T v``: an inertial vector expressed in the body frame (``rotate`` by ``q^*``)."""
     w, x, y, z = q
@@ -127,6 +137,7 @@ def rotate_inverse(q: Quat, v: Vec3) -> Vec3:
     )
 
 
+@jitable
 def to_rotmat(q: Quat) -> Mat3:
     """Rotation matrix ``R(q)`` (Euler-Rodrigues), rows as tuples."""
     w, x, y, z = q
@@ -140,6 +151,7 @@ def to_rotmat(q: Quat) -> Mat3:
     )
 
 
+@jitable
 def from_rotmat(m: Mat3) -> Quat:
     """Unit quaternion (``w >= 0``) of a rotation matrix; float form only (used at the edges)."""
     tr = m[0][0] + m[1][1] + m[2][2]
@@ -159,6 +171,7 @@ def from_rotmat(m: Mat3) -> Quat:
     return positive_scalar(normalize(q))  # type: ignore[arg-type]
 
 
+@jitable
 def _sin_half_over_angle(angle: Real) -> Real:
     """``sin(angle/2) / angle``, exact at 0 (series below 1e-4 rad)."""
     small = angle < 1e-4
@@ -166,16 +179,18 @@ def _sin_half_over_angle(angle: Real) -> Real:
     return where(small, 0.5 - angle * angle / 48.0, sin(0.5 * safe) / safe)
 
 
+@jitable
 def exp(phi: Vec3) -> Quat:
     """Unit quaternion of the rotation vector ``phi`` [rad]."""
-    angle = (phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]) ** 0.5
-    if type(angle) is float:  # one vehicle: skip the element-wise branches
+    angle = sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    if is_scalar(angle):  # one vehicle: skip the element-wise branches
         kf = 0.5 - angle * angle / 48.0 if angle < 1e-4 else math.sin(0.5 * angle) / angle
         return (math.cos(0.5 * angle), kf * phi[0], kf * phi[1], kf * phi[2])
     k = _sin_half_over_angle(angle)
     return (cos(0.5 * angle), k * phi[0], k * phi[1], k * phi[2])
 
 
+@jitable
 def log(q: Quat) -> Vec3:
     """Rotation vector [rad] of ``q`` on the shortest arc (``|log q| <= pi``)."""
     w, x, y, z = positive_scalar(q)
@@ -186,17 +201,20 @@ def log(q: Quat) -> Vec3:
     return (k * x, k * y, k * z)
 
 
+@jitable
 def from_axis_angle(axis: Vec3, angle_rad: Real) -> Quat:
     """Rotation by ``angle_rad`` about the unit vector ``axis``."""
     s = sin(0.5 * angle_rad)
     return (cos(0.5 * angle_rad), s * axis[0], s * axis[1], s * axis[2])
 
 
+@jitable
 def from_yaw(yaw_rad: Real) -> Quat:
     """``q_psi`` of (33): rotation by ``yaw_rad`` about the inertial z (down) axis."""
     return (cos(0.5 * yaw_rad), 0.0, 0.0, sin(0.5 * yaw_rad))
 
 
+@jitable
 def from_euler(roll_rad: Real, pitch_rad: Real, yaw_rad: Real) -> Quat:
     """ZYX (yaw, pitch, roll) Euler angles, as MAVLink's ATTITUDE message reports them."""
     cr, sr = cos(0.5 * roll_rad), sin(0.5 * roll_rad)
@@ -210,6 +228,7 @@ def from_euler(roll_rad: Real, pitch_rad: Real, yaw_rad: Real) -> Quat:
     )
 
 
+@jitable
 def to_euler(q: Quat) -> Vec3:
     """ZYX Euler angles ``(roll, pitch, yaw)`` [rad], for plots and telemetry only."""
     w, x, y, z = q
@@ -219,6 +238,7 @@ def to_euler(q: Quat) -> Vec3:
     return (roll, pitch, yaw)
 
 
+@jitable
 def tilt_angle(q: Quat) -> Real:
     """Angle [rad] between the body z axis and the inertial z axis (0 when level)."""
     w, x, y, z = q
@@ -228,6 +248,7 @@ def tilt_angle(q: Quat) -> Real:
     return 2.0 * atan2(s, c)
 
 
+@jitable
 def angle_between(a: Quat, b: Quat) -> Real:
     """Rotation angle [rad] of ``a^* ⊗ b`` on the shortest arc, in [0, pi]."""
     d = relative(a, b)
@@ -236,18 +257,19 @@ def angle_between(a: Quat, b: Quat) -> Real:
     return 2.0 * atan2(vn, where(w < 0.0, -w, w))
 
 
+@jitable
 def integrate(q: Quat, omega_body_rad_s: Vec3, dt_s: Real) -> Quat:
     """``q`` advanced by a body rate held for ``dt_s`` (kinematics (2), exact for a constant rate).
 
     Renormalised every call so that the quaternion stays on the unit sphere however long it runs.
     """
     px, py, pz = omega_body_rad_s[0] * dt_s, omega_body_rad_s[1] * dt_s, omega_body_rad_s[2] * dt_s
-    angle = (px * px + py * py + pz * pz) ** 0.5
+    angle = sqrt(px * px + py * py + pz * pz)
     dw: Real
     dx: Real
     dy: Real
     dz: Real
-    if type(angle) is float:  # exp inlined: this runs twice per simulated millisecond
+    if is_scalar(angle):  # exp inlined: this runs twice per simulated millisecond
         k = 0.5 - angle * angle / 48.0 if angle < 1e-4 else math.sin(0.5 * angle) / angle
         dw, dx, dy, dz = math.cos(0.5 * angle), k * px, k * py, k * pz
     else:
@@ -257,5 +279,5 @@ def integrate(q: Quat, omega_body_rad_s: Vec3, dt_s: Real) -> Quat:
     rx = qw * dx + qx * dw + qy * dz - qz * dy
     ry = qw * dy - qx * dz + qy * dw + qz * dx
     rz = qw * dz + qx * dy - qy * dx + qz * dw
-    n = (rw * rw + rx * rx + ry * ry + rz * rz) ** 0.5
+    n = sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
     return (rw / n, rx / n, ry / n, rz / n)

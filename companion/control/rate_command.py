@@ -12,12 +12,14 @@ this law, ``MC_ROLL_P`` ~ 6.5 1/s). Like the rest of the core: no I/O, floats or
 from __future__ import annotations
 
 from . import quaternion as quat
+from .jit import jitable
 from .quaternion import Quat
 from .vector import Vec3
 
 __all__ = ["body_rate_command"]
 
 
+@jitable
 def body_rate_command(q: Quat, q_d: Quat, omega_d_rad_s: Vec3, k_per_s: float) -> Vec3:
     """Body rates [rad/s, FRD] that turn ``q`` towards ``q_d`` at ``k_per_s`` [1/s], plus ``omega_d``
     (expressed in the desired frame D) carried into the body frame."""

@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from . import quaternion as quat
+from .jit import jitable
 from .params import ReferenceParams
 from .quaternion import Quat
 from .vector import (
@@ -33,9 +35,15 @@ __all__ = [
     "thrust_quaternion",
     "attitude_from_force",
     "RateReference",
+    "RateConst",
+    "RateState",
+    "rate_const",
+    "rate_init",
+    "rate_step",
 ]
 
 
+@jitable
 def limit_force(force_ned_n: Vec3, min_up_n: Real, tilt_max_rad: float) -> Vec3:
     """The force with at least ``min_up_n`` upward and at most ``tilt_max_rad`` off vertical.
 
@@ -49,6 +57,7 @@ def limit_force(force_ned_n: Vec3, min_up_n: Real, tilt_max_rad: float) -> Vec3:
     return (k * force_ned_n[0], k * force_ned_n[1], -up)
 
 
+@jitable
 def thrust_quaternion(force_ned_n: Vec3) -> Quat:
     """``q_f`` of (32), corrected: the shortest rotation taking ``-e3`` to ``f / |f|``.
 
@@ -61,12 +70,63 @@ def thrust_quaternion(force_ned_n: Vec3) -> Quat:
     return (w / n, fy / n, -fx / n, 0.0 * fx)
 
 
+@jitable
 def attitude_from_force(force_ned_n: Vec3, yaw_rad: Real) -> tuple[Quat, Real]:
     """``(q_d, T)`` with ``q_d = q_f ⊗ q_psi`` (33) and ``T = |f|``.
 
     ``q_psi`` rotates about the inertial z axis, so yaw is the angle about z_I, not the Euler yaw.
     """
     return quat.mul(thrust_quaternion(force_ned_n), quat.from_yaw(yaw_rad)), norm(force_ned_n)
+
+
+class RateConst(NamedTuple):
+    alpha: float
+    """the filter's gain over one step"""
+    rate_limit_rad_s: float
+    filter_attitude: bool
+    dt_s: float
+
+
+class RateState(NamedTuple):
+    omega_d: Vec3
+    omega_d_dot: Vec3
+    q_ref: Quat
+    """the attitude to send (meaningless until ``primed``)"""
+    primed: bool
+
+
+def rate_const(params: ReferenceParams, dt_s: float) -> RateConst:
+    tc = params.rate_filter_time_constant_s
+    a = lowpass_alpha(1.0 / tc, dt_s) if tc > 0.0 else 1.0
+    return RateConst(float(a), params.rate_limit_rad_s, params.filter_attitude, dt_s)
+
+
+@jitable
+def rate_init() -> RateState:
+    return RateState(ZERO3, ZERO3, quat.IDENTITY, False)
+
+
+@jitable
+def rate_step(c: RateConst, st: RateState, q_d: Quat) -> RateState:
+    """One position step of (34): the new state, whose ``q_ref`` is the attitude to send and
+    ``omega_d`` (in D) the rate; see :class:`RateReference`."""
+    if not st.primed:
+        return RateState(st.omega_d, st.omega_d_dot, q_d, True)
+    prev, dt_s = st.q_ref, c.dt_s
+    delta = quat.log(quat.relative(prev, q_d))
+    a = c.alpha
+    o, limit = st.omega_d, c.rate_limit_rad_s
+    if c.filter_attitude:
+        step = clip_norm((a * delta[0], a * delta[1], a * delta[2]), limit * dt_s)
+        q_ref = quat.mul(prev, quat.exp(step))
+        new = (step[0] / dt_s, step[1] / dt_s, step[2] / dt_s)
+    else:
+        raw = (delta[0] / dt_s, delta[1] / dt_s, delta[2] / dt_s)
+        new = clip_norm((o[0] + a * (raw[0] - o[0]), o[1] + a * (raw[1] - o[1]), o[2] + a * (raw[2] - o[2])),
+                        limit)
+        q_ref = q_d
+    omega_d_dot = ((new[0] - o[0]) / dt_s, (new[1] - o[1]) / dt_s, (new[2] - o[2]) / dt_s)
+    return RateState(new, omega_d_dot, q_ref, True)
 
 
 @dataclass
@@ -94,35 +154,32 @@ class RateReference:
     """
 
     params: ReferenceParams = field(default_factory=ReferenceParams)
-    omega_d: Vec3 = ZERO3
-    omega_d_dot: Vec3 = ZERO3
-    q_ref: Quat | None = None
-    """the attitude to send (None before the first update)"""
+    state: RateState = field(default_factory=rate_init, repr=False)
+    _const: RateConst | None = field(default=None, repr=False)
+
+    def const(self, dt_s: float) -> RateConst:
+        c = self._const
+        if c is None or c.dt_s != dt_s:
+            c = self._const = rate_const(self.params, dt_s)
+        return c
+
+    @property
+    def omega_d(self) -> Vec3:
+        return self.state.omega_d
+
+    @property
+    def omega_d_dot(self) -> Vec3:
+        return self.state.omega_d_dot
+
+    @property
+    def q_ref(self) -> Quat | None:
+        """the attitude to send (None before the first update)"""
+        return self.state.q_ref if self.state.primed else None
 
     def reset(self) -> None:
-        self.omega_d = ZERO3
-        self.omega_d_dot = ZERO3
-        self.q_ref = None
+        self.state = rate_init()
 
     def update(self, q_d: Quat, dt_s: float) -> Vec3:
         """One position step: sets :attr:`q_ref` and returns ``omega_d`` (in D)."""
-        prev = self.q_ref
-        if prev is None:
-            self.q_ref = q_d
-            return self.omega_d
-        delta = quat.log(quat.relative(prev, q_d))
-        tc = self.params.rate_filter_time_constant_s
-        a = lowpass_alpha(1.0 / tc, dt_s) if tc > 0.0 else 1.0
-        o, limit = self.omega_d, self.params.rate_limit_rad_s
-        if self.params.filter_attitude:
-            step = clip_norm((a * delta[0], a * delta[1], a * delta[2]), limit * dt_s)
-            self.q_ref = quat.mul(prev, quat.exp(step))
-            new = (step[0] / dt_s, step[1] / dt_s, step[2] / dt_s)
-        else:
-            raw = (delta[0] / dt_s, delta[1] / dt_s, delta[2] / dt_s)
-            new = clip_norm((o[0] + a * (raw[0] - o[0]), o[1] + a * (raw[1] - o[1]), o[2] + a * (raw[2] - o[2])),
-                            limit)
-            self.q_ref = q_d
-        self.omega_d_dot = ((new[0] - o[0]) / dt_s, (new[1] - o[1]) / dt_s, (new[2] - o[2]) / dt_s)
-        self.omega_d = new
-        return new
+        self.state = rate_step(self.const(dt_s), self.state, q_d)
+        return self.state.omega_d

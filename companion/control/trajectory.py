@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+from .jit import jitable
 from .params import TrajectoryParams
 from .vector import (
     ZERO3,
@@ -28,7 +29,8 @@ from .vector import (
     sub,
 )
 
-__all__ = ["PositionReference", "ReferenceFilter", "wrap_angle"]
+__all__ = ["PositionReference", "ReferenceFilter", "wrap_angle", "TrajectoryConst", "ReferenceState",
+           "reference_filter_step"]
 
 
 class PositionReference(NamedTuple):
@@ -40,11 +42,13 @@ class PositionReference(NamedTuple):
     yaw_rad: Real = 0.0
 
 
+@jitable
 def wrap_angle(angle_rad: Real) -> Real:
     """Angle wrapped to (-pi, pi]."""
     return atan2(sin(angle_rad), cos(angle_rad))
 
 
+@jitable
 def _approach_speed_limit(accel: Vec3, vel: Vec3, max_speed: float, max_jerk: float, dt_s: float) -> Vec3:
     """``accel`` with its component along the velocity no larger than the jerk limit can still
     bring to zero before the speed reaches its limit: ``v + a dt + a^2 / (2 j) <= v_max`` (this
@@ -61,9 +65,58 @@ def _approach_speed_limit(accel: Vec3, vel: Vec3, max_speed: float, max_jerk: fl
     return (accel[0] - excess * vel[0], accel[1] - excess * vel[1], accel[2] - excess * vel[2])
 
 
+class TrajectoryConst(NamedTuple):
+    """:class:`~companion.control.params.TrajectoryParams` as a tuple (the same field names), for
+    compiled code; :func:`reference_filter_step` takes either."""
+
+    max_speed_m_s: float
+    max_accel_m_s2: float
+    max_jerk_m_s3: float
+    bandwidth_rad_s: float
+    max_yaw_rate_rad_s: float
+
+    @staticmethod
+    def of(p: TrajectoryParams) -> TrajectoryConst:
+        return TrajectoryConst(p.max_speed_m_s, p.max_accel_m_s2, p.max_jerk_m_s3, p.bandwidth_rad_s,
+                               p.max_yaw_rate_rad_s)
+
+
+class ReferenceState(NamedTuple):
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
+    accel_ned_m_s2: Vec3
+    yaw_rad: Real
+
+
+@jitable
+def reference_filter_step(p: TrajectoryParams | TrajectoryConst, st: ReferenceState, target_ned_m: Vec3,
+                          target_yaw_rad: Real, dt_s: float) -> ReferenceState:
+    """One step of the limited, critically damped filter towards ``target_ned_m`` and yaw."""
+    w = p.bandwidth_rad_s
+    d = sub(target_ned_m, st.pos_ned_m)
+    v = st.vel_ned_m_s
+    a_cmd = clip_norm(
+        (w * w * d[0] - 2.0 * w * v[0], w * w * d[1] - 2.0 * w * v[1], w * w * d[2] - 2.0 * w * v[2]),
+        p.max_accel_m_s2,
+    )
+    a_cmd = _approach_speed_limit(a_cmd, v, p.max_speed_m_s, p.max_jerk_m_s3, dt_s)
+    a0 = st.accel_ned_m_s2
+    da = clip_norm((a_cmd[0] - a0[0], a_cmd[1] - a0[1], a_cmd[2] - a0[2]), p.max_jerk_m_s3 * dt_s)
+    a_cmd = (a0[0] + da[0], a0[1] + da[1], a0[2] + da[2])
+    v_new = clip_norm((v[0] + a_cmd[0] * dt_s, v[1] + a_cmd[1] * dt_s, v[2] + a_cmd[2] * dt_s), p.max_speed_m_s)
+    accel = ((v_new[0] - v[0]) / dt_s, (v_new[1] - v[1]) / dt_s, (v_new[2] - v[2]) / dt_s)
+    r = st.pos_ned_m
+    h = 0.5 * dt_s
+    pos = (r[0] + h * (v[0] + v_new[0]), r[1] + h * (v[1] + v_new[1]), r[2] + h * (v[2] + v_new[2]))
+    yaw_step = clip(w * wrap_angle(target_yaw_rad - st.yaw_rad), -p.max_yaw_rate_rad_s, p.max_yaw_rate_rad_s)
+    return ReferenceState(pos, v_new, accel, wrap_angle(st.yaw_rad + yaw_step * dt_s))
+
+
 @dataclass
 class ReferenceFilter:
-    """Smooth reference towards a target position and yaw; start it where the vehicle is."""
+    """Smooth reference towards a target position and yaw; start it where the vehicle is.
+
+    A wrapper around :func:`reference_filter_step`."""
 
     params: TrajectoryParams
     pos_ned_m: Vec3
@@ -72,24 +125,8 @@ class ReferenceFilter:
     accel_ned_m_s2: Vec3 = field(default=ZERO3)
 
     def update(self, target_ned_m: Vec3, target_yaw_rad: Real, dt_s: float) -> PositionReference:
-        p = self.params
-        w = p.bandwidth_rad_s
-        d = sub(target_ned_m, self.pos_ned_m)
-        v = self.vel_ned_m_s
-        a_cmd = clip_norm(
-            (w * w * d[0] - 2.0 * w * v[0], w * w * d[1] - 2.0 * w * v[1], w * w * d[2] - 2.0 * w * v[2]),
-            p.max_accel_m_s2,
-        )
-        a_cmd = _approach_speed_limit(a_cmd, v, p.max_speed_m_s, p.max_jerk_m_s3, dt_s)
-        a0 = self.accel_ned_m_s2
-        da = clip_norm((a_cmd[0] - a0[0], a_cmd[1] - a0[1], a_cmd[2] - a0[2]), p.max_jerk_m_s3 * dt_s)
-        a_cmd = (a0[0] + da[0], a0[1] + da[1], a0[2] + da[2])
-        v_new = clip_norm((v[0] + a_cmd[0] * dt_s, v[1] + a_cmd[1] * dt_s, v[2] + a_cmd[2] * dt_s), p.max_speed_m_s)
-        self.accel_ned_m_s2 = ((v_new[0] - v[0]) / dt_s, (v_new[1] - v[1]) / dt_s, (v_new[2] - v[2]) / dt_s)
-        r = self.pos_ned_m
-        h = 0.5 * dt_s
-        self.pos_ned_m = (r[0] + h * (v[0] + v_new[0]), r[1] + h * (v[1] + v_new[1]), r[2] + h * (v[2] + v_new[2]))
-        self.vel_ned_m_s = v_new
-        yaw_step = clip(w * wrap_angle(target_yaw_rad - self.yaw_rad), -p.max_yaw_rate_rad_s, p.max_yaw_rate_rad_s)
-        self.yaw_rad = wrap_angle(self.yaw_rad + yaw_step * dt_s)
-        return PositionReference(self.pos_ned_m, self.vel_ned_m_s, self.accel_ned_m_s2, self.yaw_rad)
+        st = reference_filter_step(self.params,
+                                   ReferenceState(self.pos_ned_m, self.vel_ned_m_s, self.accel_ned_m_s2, self.yaw_rad),
+                                   target_ned_m, target_yaw_rad, dt_s)
+        self.pos_ned_m, self.vel_ned_m_s, self.accel_ned_m_s2, self.yaw_rad = st
+        return PositionReference(st.pos_ned_m, st.vel_ned_m_s, st.accel_ned_m_s2, st.yaw_rad)

@@ -20,6 +20,8 @@ from typing import Sequence, Union
 import numpy as np
 from numpy.typing import NDArray
 
+from .jit import float_form, jitable
+
 __all__ = [
     "Real",
     "Vec3",
@@ -57,6 +59,7 @@ __all__ = [
     "skew",
     "vee",
     "as_vec3",
+    "is_scalar",
 ]
 
 Real = Union[float, NDArray[np.float64]]
@@ -73,60 +76,79 @@ _ndarray = np.ndarray
 # --- element-wise scalar functions (float or batch) -----------------------------------
 
 
+@float_form(lambda x: True)
+def is_scalar(x: object) -> bool:
+    """True for one vehicle's float (always, in compiled code), False for a batch array: the
+    float-only fast paths of a few hot laws test this."""
+    return type(x) is float
+
+
+@float_form(lambda x: math.sqrt(x))
 def sqrt(x: Real) -> Real:
     return np.sqrt(x) if type(x) is _ndarray else math.sqrt(x)
 
 
+@float_form(lambda x: math.exp(x))
 def exp(x: Real) -> Real:
     return np.exp(x) if type(x) is _ndarray else math.exp(x)
 
 
+@float_form(lambda x: math.sin(x))
 def sin(x: Real) -> Real:
     return np.sin(x) if type(x) is _ndarray else math.sin(x)
 
 
+@float_form(lambda x: math.cos(x))
 def cos(x: Real) -> Real:
     return np.cos(x) if type(x) is _ndarray else math.cos(x)
 
 
+@float_form(lambda y, x: math.atan2(y, x))
 def atan2(y: Real, x: Real) -> Real:
     if type(y) is _ndarray or type(x) is _ndarray:
         return np.arctan2(y, x)
     return math.atan2(y, x)
 
 
+@float_form(lambda x: math.asin(min(1.0, max(-1.0, x))))
 def asin(x: Real) -> Real:
     """Arc-sine with the argument clipped to [-1, 1] (rounding can push it past)."""
     return np.arcsin(np.clip(x, -1.0, 1.0)) if type(x) is _ndarray else math.asin(min(1.0, max(-1.0, x)))
 
 
+@float_form(lambda x: abs(x))
 def absolute(x: Real) -> Real:
     return np.abs(x) if type(x) is _ndarray else abs(x)  # type: ignore[return-value]
 
 
+@float_form(lambda a, b: a if a < b else b)
 def minimum(a: Real, b: Real) -> Real:
     if type(a) is _ndarray or type(b) is _ndarray:
         return np.minimum(a, b)
     return a if a < b else b
 
 
+@float_form(lambda a, b: a if a > b else b)
 def maximum(a: Real, b: Real) -> Real:
     if type(a) is _ndarray or type(b) is _ndarray:
         return np.maximum(a, b)
     return a if a > b else b
 
 
+@float_form(lambda x, lo, hi: lo if x < lo else (hi if x > hi else x))
 def clip(x: Real, lo: Real, hi: Real) -> Real:
     if type(x) is _ndarray or type(lo) is _ndarray or type(hi) is _ndarray:
         return np.minimum(np.maximum(x, lo), hi)
     return lo if x < lo else (hi if x > hi else x)
 
 
+@jitable
 def lowpass_alpha(bandwidth_rad_s: Real, dt_s: float) -> Real:
     """Gain of a first-order low-pass ``y += alpha (u - y)`` held over ``dt_s`` (exact, ZOH)."""
     return 1.0 - exp(-bandwidth_rad_s * dt_s)
 
 
+@float_form(lambda cond, a, b: a if cond else b)
 def where(cond: bool | NDArray[np.bool_], a: Real, b: Real) -> Real:
     """``a`` where ``cond`` holds, else ``b`` (element-wise for a batch)."""
     if type(cond) is _ndarray:
@@ -143,35 +165,43 @@ def as_vec3(v: Sequence[float]) -> Vec3:
     return (float(x), float(y), float(z))
 
 
+@jitable
 def add(a: Vec3, b: Vec3) -> Vec3:
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
+@jitable
 def sub(a: Vec3, b: Vec3) -> Vec3:
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
+@jitable
 def neg(a: Vec3) -> Vec3:
     return (-a[0], -a[1], -a[2])
 
 
+@jitable
 def scale(k: Real, a: Vec3) -> Vec3:
     return (k * a[0], k * a[1], k * a[2])
 
 
+@jitable
 def mul(a: Vec3, b: Vec3) -> Vec3:
     """Element-wise product (a diagonal gain times a vector)."""
     return (a[0] * b[0], a[1] * b[1], a[2] * b[2])
 
 
+@jitable
 def div(a: Vec3, b: Vec3) -> Vec3:
     return (a[0] / b[0], a[1] / b[1], a[2] / b[2])
 
 
+@jitable
 def dot(a: Vec3, b: Vec3) -> Real:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
+@jitable
 def cross(a: Vec3, b: Vec3) -> Vec3:
     return (
         a[1] * b[2] - a[2] * b[1],
@@ -180,14 +210,17 @@ def cross(a: Vec3, b: Vec3) -> Vec3:
     )
 
 
+@jitable
 def norm(a: Vec3) -> Real:
-    # ** 0.5 is sqrt for floats and arrays alike, without a Python-level dispatch
-    return (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]) ** 0.5
+    # sqrt, not ** 0.5: CPython computes float ** 0.5 with pow(), which is off by one ulp now and
+    # then, where compiled code and NumPy take the correctly rounded square root
+    return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
+@jitable
 def sat(a: Vec3, width: Vec3) -> Vec3:
     """Element-wise ``sat(a / width)`` clipped to [-1, 1] (the boundary layer of (23))."""
-    if type(a[0]) is float:
+    if is_scalar(a[0]):
         u0, u1, u2 = a[0] / width[0], a[1] / width[1], a[2] / width[2]
         return (
             -1.0 if u0 < -1.0 else (1.0 if u0 > 1.0 else u0),
@@ -201,6 +234,7 @@ def sat(a: Vec3, width: Vec3) -> Vec3:
     )
 
 
+@jitable
 def clip_norm(a: Vec3, limit: Real) -> Vec3:
     """``a`` scaled down, keeping its direction, so that ``|a| <= limit``."""
     n = norm(a)
@@ -211,6 +245,7 @@ def clip_norm(a: Vec3, limit: Real) -> Vec3:
 # --- matrices (tuples of rows) -------------------------------------------------------
 
 
+@jitable
 def matvec(m: Mat3, v: Vec3) -> Vec3:
     r0, r1, r2 = m
     x, y, z = v
@@ -221,6 +256,7 @@ def matvec(m: Mat3, v: Vec3) -> Vec3:
     )
 
 
+@jitable
 def mat_t_vec(m: Mat3, v: Vec3) -> Vec3:
     """``m^T v`` without forming the transpose."""
     return (
@@ -230,6 +266,7 @@ def mat_t_vec(m: Mat3, v: Vec3) -> Vec3:
     )
 
 
+@jitable
 def transpose(m: Mat3) -> Mat3:
     return (
         (m[0][0], m[1][0], m[2][0]),
@@ -238,6 +275,7 @@ def transpose(m: Mat3) -> Mat3:
     )
 
 
+@jitable
 def matmul(a: Mat3, b: Mat3) -> Mat3:
     bt = transpose(b)
     return (
@@ -247,15 +285,18 @@ def matmul(a: Mat3, b: Mat3) -> Mat3:
     )
 
 
+@jitable
 def diag(d: Vec3) -> Mat3:
     return ((d[0], 0.0, 0.0), (0.0, d[1], 0.0), (0.0, 0.0, d[2]))
 
 
+@jitable
 def skew(a: Vec3) -> Mat3:
     """The paper's S(a): ``skew(a) b = a x b``."""
     return ((0.0, -a[2], a[1]), (a[2], 0.0, -a[0]), (-a[1], a[0], 0.0))
 
 
+@jitable
 def vee(m: Mat3) -> Vec3:
     """Inverse of :func:`skew` (takes the skew-symmetric part of ``m``)."""
     return (

@@ -199,10 +199,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, help="run seeds 1..N instead of the scenario's own list")
     ap.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
     ap.add_argument("--list", action="store_true", help="list the bundled scenarios and exit")
+    ap.add_argument("--engine", choices=("compiled", "objects"),
+                    help="simulator (default: compiled when numba is installed; sets SITL_ENGINE for workers too)")
     ap.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
                     help="change a scenario parameter for every scenario run, e.g. position.force_source=measured "
                          "or position.observer_uses_imu=true (repeatable)")
     args = ap.parse_args(argv)
+    if args.engine:
+        os.environ["SITL_ENGINE"] = args.engine
     if args.list:
         for p in sorted(SCENARIO_DIR.glob("*.toml")):
             print(f"{p.stem:24s} {load_scenario(p).description}")

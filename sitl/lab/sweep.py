@@ -29,8 +29,11 @@ Cases that differ only in their seed run as one batch of vehicles (the simulator
 bit-identical to one-vehicle runs). Results are appended to ``OUT/<name>/cases.csv`` as batches
 finish: one row per case with its parameters, status and metrics. A re-run skips the cases
 already in the table (``--retry-failed`` re-runs the failed ones); a failed case is recorded with
-its error, never dropped. Execution: local processes (``--jobs``, default all cores), or any Dask
-distributed scheduler (``--scheduler ADDRESS``); the same seeds give the same numbers either way.
+its error, never dropped. Execution: on the compiled kernel (numba installed), one batch after
+another in this process, each batch's vehicles in parallel on every core; on the objects engine
+(``SITL_ENGINE=objects``, or without numba), local processes (``--jobs``, default all cores); or
+any Dask distributed scheduler (``--scheduler ADDRESS``). The same seeds give the same numbers
+every way.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ import os
 import random
 import sys
 import time
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
@@ -59,7 +62,7 @@ from companion.control.position import POSITION_CONTROLLERS
 
 from ..plant.scenario import Scenario, Segment, load_scenario
 from .metrics import SegmentMetrics, segment_metrics
-from .simulation import simulate
+from .simulation import default_engine, simulate
 
 __all__ = ["SweepSpec", "Task", "Member", "stack_gains", "NAMED_PARAMETERS", "load_sweep", "apply_parameters",
            "plan", "fly_batch", "run_task", "run_sweep", "main"]
@@ -396,7 +399,7 @@ FLOAT_BELOW = 12
 
 def fly_batch(task: Task) -> list[dict[str, Any]]:
     """All members of ``task`` as one batch of vehicles (gains stacked); raises if the batch fails."""
-    if len(task.seeds) < FLOAT_BELOW:
+    if len(task.seeds) < FLOAT_BELOW and default_engine() == "objects":
         return [r for m in task.members for s in m.seeds
                 for r in _fly(m.scenario, task, [Member(m.params, m.scenario, (s,))])]
     return _fly(stack_gains(task.members), task, task.members)
@@ -441,8 +444,28 @@ Submit = Callable[[Task], Any]
 Completed = Callable[[list[Any]], Iterable[Any]]
 
 
+class _Later:
+    """A task run when its result is asked for (the in-process executor: one task at a time, so
+    rows reach the table as each batch finishes, as with a pool)."""
+
+    def __init__(self, task: Task) -> None:
+        self.task = task
+
+    def result(self) -> list[dict[str, Any]]:
+        return run_task(self.task)
+
+
+def default_jobs() -> int:
+    """1 on the compiled kernel (each batch already runs on every core: more processes would only
+    share the cores and load the kernel again), else one process per core."""
+    return 1 if default_engine() == "compiled" else os.cpu_count() or 1
+
+
 def _executor(jobs: int | None, scheduler: str | None) -> tuple[Submit, Completed, Callable[[], None]]:
-    """(submit, as_completed, close) for local processes or a Dask scheduler."""
+    """(submit, as_completed, close) for this process, local processes or a Dask scheduler."""
+    jobs = jobs or default_jobs()
+    if not scheduler and jobs == 1:
+        return _Later, iter, lambda: None
     if scheduler:
         from distributed import Client
         from distributed import as_completed as dask_completed
@@ -450,7 +473,7 @@ def _executor(jobs: int | None, scheduler: str | None) -> tuple[Submit, Complete
         client = Client(scheduler)
         return (lambda t: client.submit(run_task, t, pure=False), lambda fs: dask_completed(fs),
                 client.close)
-    pool = ProcessPoolExecutor(max_workers=jobs or os.cpu_count() or 1)
+    pool = ProcessPoolExecutor(max_workers=jobs)
     return (lambda t: pool.submit(run_task, t), lambda fs: as_completed(fs), lambda: pool.shutdown(cancel_futures=True))
 
 
@@ -486,7 +509,7 @@ def run_sweep(spec: SweepSpec, out_dir: Path, jobs: int | None = None, scheduler
                 w = csv.DictWriter(f, fieldnames=columns)
                 if new_file:
                     w.writeheader()
-                futures: list[Future[Any]] = [submit(t) for t in tasks]
+                futures: list[Any] = [submit(t) for t in tasks]
                 for fut in completed(futures):
                     rows = fut.result()
                     w.writerows(rows)
@@ -595,11 +618,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("sweep", help="sweep file, or a bundled name (sitl/lab/sweeps/)")
     ap.add_argument("--out", type=Path, default=Path("sweeps"), help="output folder (default: sweeps)")
-    ap.add_argument("--jobs", type=int, help="local worker processes (default: all cores)")
+    ap.add_argument("--jobs", type=int,
+                    help="local worker processes (default: 1 on the compiled kernel, which uses all cores; else all)")
+    ap.add_argument("--engine", choices=("compiled", "objects"),
+                    help="simulator (default: compiled when numba is installed; sets SITL_ENGINE for workers too)")
     ap.add_argument("--scheduler", help="address of a Dask distributed scheduler, e.g. tcp://host:8786")
     ap.add_argument("--retry-failed", action="store_true", help="run the failed cases again")
     ap.add_argument("--no-plots", action="store_true")
     args = ap.parse_args(argv)
+    if args.engine:
+        os.environ["SITL_ENGINE"] = args.engine
     try:
         spec = load_sweep(args.sweep)
     except ConfigError as exc:

@@ -18,12 +18,16 @@ import numpy as np
 from companion.control import quaternion as quat
 from companion.control.allocation import Rotors4, rotor_speeds_sq_for, wrench_from_rotor_speeds
 from companion.control.attitude import AttitudeController
+from companion.control.jit import depends_on, jitable
 from companion.control.outer_loop import AttitudeSetpoint
 from companion.control.params import AttitudeGains, VehicleParams
 from companion.control.quaternion import Quat
 from companion.control.vector import ZERO3, Real, Vec3, clip, sqrt
 
-__all__ = ["EstimatorGains", "AttitudeEstimator", "OnboardAttitudeLoop"]
+depends_on(__file__)  # the kernel inlines estimator_correct
+
+__all__ = ["EstimatorGains", "AttitudeEstimator", "OnboardAttitudeLoop", "estimator_correct",
+           "command_level"]
 
 
 @dataclass(frozen=True)
@@ -50,16 +54,31 @@ class AttitudeEstimator:
         return omega
 
     def correct(self, q_measured: Quat) -> None:
-        """Pull the estimate towards a tracking sample and learn the gyro bias (PI correction).
+        """Pull the estimate towards a tracking sample and learn the gyro bias (:func:`estimator_correct`)."""
+        self.q, self.gyro_bias = estimator_correct(self.gains.attitude_gain, self.gains.bias_gain, self.q,
+                                                   self.gyro_bias, q_measured)
 
-        A positive bias makes the estimate run ahead of the measurement, giving a negative error,
-        so the bias estimate moves against the error.
-        """
-        err = quat.log(quat.relative(self.q, q_measured))  # body-frame error [rad]
-        k, kb = self.gains.attitude_gain, self.gains.bias_gain
-        self.q = quat.normalize(quat.mul(self.q, quat.exp((k * err[0], k * err[1], k * err[2]))))
-        b = self.gyro_bias
-        self.gyro_bias = (b[0] - kb * err[0], b[1] - kb * err[1], b[2] - kb * err[2])
+
+@jitable
+def estimator_correct(attitude_gain: Real, bias_gain: Real, q_est: Quat, gyro_bias: Vec3,
+                      q_measured: Quat) -> tuple[Quat, Vec3]:
+    """Pull the estimate towards a tracking sample and learn the gyro bias (PI correction): the
+    estimate and bias after one sample. A positive bias makes the estimate run ahead of the
+    measurement, giving a negative error, so the bias estimate moves against the error."""
+    err = quat.log(quat.relative(q_est, q_measured))  # body-frame error [rad]
+    k, kb = attitude_gain, bias_gain
+    q = quat.normalize(quat.mul(q_est, quat.exp((k * err[0], k * err[1], k * err[2]))))
+    b = gyro_bias
+    return q, (b[0] - kb * err[0], b[1] - kb * err[1], b[2] - kb * err[2])
+
+
+@jitable
+def command_level(w_sq: float, lo_rad_s: float, hi_rad_s: float, step_rad_s: float) -> float:
+    """One rotor's speed command [rad/s] for a squared speed: clipped to range, then on the
+    motor interface's grid (the compiled kernel's mixer calls this too)."""
+    w = math.sqrt(w_sq) if w_sq > 0.0 else 0.0
+    w = lo_rad_s if w < lo_rad_s else (hi_rad_s if w > hi_rad_s else w)
+    return lo_rad_s + round((w - lo_rad_s) / step_rad_s) * step_rad_s
 
 
 def _round(x: Real) -> Real:
@@ -97,12 +116,8 @@ class OnboardAttitudeLoop:
         """Rotor speed commands [rad/s] for squared speeds: clipped to range, then quantised."""
         lo, hi, step = self._w_min, self._w_max, self._step
         if type(w_sq[0]) is float:  # one vehicle: plain floats, several times faster
-            out = []
-            for x in w_sq:
-                w = x**0.5 if x > 0.0 else 0.0
-                w = lo if w < lo else (hi if w > hi else w)
-                out.append(lo + round((w - lo) / step) * step)
-            return (out[0], out[1], out[2], out[3])
+            return (command_level(w_sq[0], lo, hi, step), command_level(w_sq[1], lo, hi, step),
+                    command_level(w_sq[2], lo, hi, step), command_level(w_sq[3], lo, hi, step))
         ws = [clip(sqrt(clip(x, 0.0, math.inf)), lo, hi) for x in w_sq]
         return tuple(lo + _round((w - lo) / step) * step for w in ws)  # type: ignore[return-value]
 

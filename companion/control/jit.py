@@ -1,0 +1,145 @@
+"""One source for each law, run interpreted or compiled with numba.
+
+The laws of :mod:`companion.control` are plain Python functions over floats and tuples (NumPy
+arrays of shape ``(N,)`` work too, in Python). :func:`jitable` marks a function that numba may
+compile when a compiled kernel calls it; it returns the function unchanged, so importing the
+control core never imports numba: the companion runs these functions interpreted, with nothing
+but NumPy (docs/benchmarks.md, "the companion's loop", has the measurement behind that choice).
+
+A kernel (the simulator's vehicle step and its batch loop, ``sitl``) is built with
+:func:`kernel`, which calls :func:`register_with_numba` first: every :func:`jitable` function
+becomes callable from compiled code (``numba.extending.register_jitable``), and each of the few
+element-wise helpers that pick float-or-array at run time (:func:`float_form`) gets its float
+implementation. ``NUMBA_DISABLE_JIT=1`` turns every kernel back into its Python function, so the
+same source runs both ways (``tests/sitl/test_compiled.py`` holds the two within 1e-12 over an E3
+flight).
+
+Compiled kernels are cached on disk (``cache=True``) in a folder named after a digest of the
+sources they are compiled from (:func:`cache_dir`): numba's own cache only watches the file of
+the kernel itself, so an edited law in another file would otherwise run stale code.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+from typing import Any, Callable, TypeVar
+
+__all__ = ["jitable", "float_form", "kernel", "register_with_numba", "numba_available", "cache_dir", "SOURCES",
+           "depends_on", "PARALLEL_LAYER"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+_JITABLE: list[Callable[..., Any]] = []
+_FLOAT_FORMS: list[tuple[Callable[..., Any], Callable[..., Any]]] = []
+_registered = (0, 0)
+
+SOURCES: list[Path] = [Path(__file__).parent]
+"""Folders (or files) whose ``.py`` sources compiled kernels depend on (:func:`depends_on`)."""
+
+
+def depends_on(path: str | Path) -> None:
+    """Kernels built from now on also depend on the sources in ``path`` (a folder or a file)."""
+    p = Path(path).resolve()
+    if p not in SOURCES:
+        SOURCES.append(p)
+
+
+def jitable(fn: F) -> F:
+    """Mark ``fn`` as compilable by numba when a kernel calls it; returns ``fn`` itself."""
+    _JITABLE.append(fn)
+    return fn
+
+
+def float_form(impl: Callable[..., Any]) -> Callable[[F], F]:
+    """``impl`` is what the decorated float-or-array helper computes for floats, in compiled code.
+
+    Only the element-wise primitives (``sqrt``, ``clip``, ``where`` ...) have one: they choose
+    between :mod:`math` and NumPy by the argument's type, which numba cannot ask at run time.
+    """
+
+    def wrap(fn: F) -> F:
+        _FLOAT_FORMS.append((fn, impl))
+        return fn
+
+    return wrap
+
+
+def numba_available() -> bool:
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _digest() -> str:
+    """Of every source file, in path order: the same whichever module called depends_on first
+    (the import order differs between processes; the cache folder must not)."""
+    h = hashlib.sha256()
+    files: set[Path] = set()
+    for src in SOURCES:
+        files.update(src.rglob("*.py") if src.is_dir() else [src])
+    for f in sorted(files):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def cache_dir() -> Path:
+    """Where compiled kernels are cached: ``$NUMBA_CACHE_DIR`` (or ``~/.cache/ismdo-numba``)
+    then a folder per digest of :data:`SOURCES`, so any edit of a law recompiles."""
+    base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "ismdo-numba")
+    return Path(base) / _digest()
+
+
+def register_with_numba() -> None:
+    """Make every :func:`jitable` function and :func:`float_form` callable from compiled code
+    (those marked since the last call: a module imported later registers its own)."""
+    global _registered
+    from numba.extending import overload, register_jitable
+
+    for fn, impl in _FLOAT_FORMS[_registered[0]:]:
+        overload(fn, jit_options={}, strict=False)(_returning(impl))
+    for fn in _JITABLE[_registered[1]:]:
+        register_jitable(fn)
+    _registered = (len(_FLOAT_FORMS), len(_JITABLE))
+
+
+def _returning(impl: Callable[..., Any]) -> Callable[..., Any]:
+    def typer(*args: Any) -> Callable[..., Any]:
+        return impl
+
+    return typer
+
+
+PARALLEL_LAYER = "workqueue"
+"""numba's threading layer for parallel kernels (unless ``NUMBA_THREADING_LAYER`` says otherwise).
+
+numba's default picks OpenMP where it finds it, and GNU OpenMP cannot survive a fork(): a process
+pool (a sweep's ``--jobs``, Dask's workers) started after a parallel kernel has run dies with
+"fork() called from a process already using GNU OpenMP". TBB is fork-safe but another native
+dependency. The workqueue layer ships with numba, is fork-safe and ran batches as fast as OpenMP
+on this machine (docs/benchmarks.md); it is not safe for two Python threads launching parallel
+kernels at once, so callers serialise their launches (``sitl.lab.simulation`` holds a lock)."""
+
+
+def kernel(fn: F | None = None, *, parallel: bool = False) -> Any:
+    """Compile ``fn`` with numba (``nopython``, ``cache=True``), or return it as it is when numba
+    is not installed (the simulator then runs interpreted, slowly but with the same numbers)."""
+
+    def build(f: F) -> Any:
+        if not numba_available():
+            return f
+        import numba
+
+        register_with_numba()
+        # numba reads the folder when a cached kernel is created (NUMBA_CACHE_DIR is the base)
+        numba.config.CACHE_DIR = str(cache_dir())  # type: ignore[attr-defined]
+        if parallel and numba.config.THREADING_LAYER == "default":  # type: ignore[attr-defined]
+            numba.config.THREADING_LAYER = PARALLEL_LAYER  # type: ignore[attr-defined]
+        return numba.njit(cache=True, parallel=parallel, error_model="numpy")(f)
+
+    return build(fn) if fn is not None else build

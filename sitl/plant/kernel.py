@@ -1,0 +1,637 @@
+"""One simulated vehicle as a pure step function, and the flight loop around it, compiled with numba.
+
+Everything below the setpoint at the plant rate (1 kHz) -- disturbances and wind at ``t``, the
+onboard attitude estimate and attitude loop, the mixer with its quantisation, the rigid body,
+the IMU and the 60 Hz tracking system -- is :func:`vehicle_step` on a :class:`VehicleState`
+(NamedTuples of floats, immutable), with everything that does not change in flight in a
+:class:`VehicleConst`. :func:`fly_loop` adds the position loop of the control core at its own
+rate and writes the log; :func:`fly_many` runs it for many vehicles in a parallel loop, and
+:data:`fly_batch` is that loop compiled.
+The laws are the control core's own functions (``companion.control``), compiled where a kernel
+calls them; noise is drawn in the loop from counter-based streams (:mod:`.rng`).
+
+Built from a :class:`~sitl.plant.scenario.Scenario` by :func:`vehicle_const` (in Python, once).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from companion.control import quaternion as quat
+from companion.control.allocation import Rotors4, RotorModel, rotor_speeds_sq_for, wrench_from_rotor_speeds
+from companion.control.attitude import (
+    AttitudeConst,
+    AttitudeState,
+    attitude_const,
+    attitude_disturbance_estimate,
+    attitude_init,
+    attitude_step,
+)
+from companion.control.jit import depends_on, jitable, kernel
+from companion.control.outer_loop import (
+    AttitudeSetpoint,
+    LoopConst,
+    LoopState,
+    loop_const,
+    position_loop_step,
+)
+from companion.control.position import position_const, position_init
+from companion.control.quaternion import Quat
+from companion.control.reference import rate_const, rate_init
+from companion.control.trajectory import PositionReference, ReferenceState, TrajectoryConst, reference_filter_step
+from companion.control.vector import ZERO3, Vec3, lowpass_alpha
+
+from . import rng
+from .body import Forces, PlantConst, RigidBody, plant_const, plant_step
+from .codec import codec
+from .onboard import command_level, estimator_correct
+
+try:
+    from numba import prange
+except ImportError:  # the simulator without its extra: the same loops, interpreted
+    prange = range
+
+depends_on(__file__)
+
+__all__ = [
+    "PlantConst", "RigidBody", "Forces", "plant_const", "plant_step",
+    "SensorConst", "MocapState", "imu_sample", "mocap_step",
+    "WindConst", "WindState", "wind_const", "wind_init", "wind_step",
+    "profiles_array", "profiles_at",
+    "VehicleConst", "VehicleState", "vehicle_const", "vehicle_init", "vehicle_step",
+    "FlightConst", "flight_const", "LOG_COLUMNS", "fly_loop", "FLIGHT_CODEC", "fly_many", "fly_batch",
+]
+
+# --- sensors: IMU at the plant rate, 60 Hz tracking with delay -----------------------------------------
+
+PENDING = 4
+"""Tracking samples in transit at most (the delay is under three sample periods)."""
+
+
+class SensorConst(NamedTuple):
+    gyro_noise_rad_s: float
+    accel_noise_m_s2: float
+    gyro_bias_rad_s: Vec3
+    accel_bias_m_s2: Vec3
+    gyro_keys: tuple[int, int, int]
+    accel_keys: tuple[int, int, int]
+    mocap_keys: tuple[int, int, int, int, int, int]
+    mocap_period_s: float
+    mocap_delay_s: float
+    mocap_pos_noise_m: float
+    mocap_att_noise_rad: float
+    velocity_alpha: float
+    accel_alpha: float
+
+
+class MocapSample(NamedTuple):
+    """Latest delivered tracking data and what is derived from it."""
+
+    time_s: float
+    """time the delivered sample was taken"""
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
+    accel_ned_m_s2: Vec3
+    q: Quat
+
+
+class Pending(NamedTuple):
+    due_s: float
+    taken_s: float
+    pos_ned_m: Vec3
+    q: Quat
+
+
+class MocapState(NamedTuple):
+    next_s: float
+    """when the next sample is taken"""
+    taken: int
+    """samples taken so far (the noise counter)"""
+    pending: tuple[Pending, Pending, Pending, Pending]
+    """in transit, oldest at index PENDING - n_pending"""
+    n_pending: int
+    latest: MocapSample
+    has_prev: bool
+    pos_prev: Vec3
+
+
+def sensor_const(params: object, seed: int, dt_s: float) -> SensorConst:
+    p = params
+    b = rng.normals(seed, "bias", 6, 0)
+    gb, ab = p.gyro_bias_rad_s, p.accel_bias_m_s2  # type: ignore[attr-defined]
+    period = 1.0 / p.mocap_rate_hz  # type: ignore[attr-defined]
+    if p.mocap_delay_s > (PENDING - 1) * period:  # type: ignore[attr-defined]
+        raise ValueError(f"mocap_delay_s: at most {PENDING - 1} sample periods")
+    g, a, m = rng.STREAMS["gyro"], rng.STREAMS["accel"], rng.STREAMS["mocap"]
+    return SensorConst(
+        float(p.gyro_noise_rad_s), float(p.accel_noise_m_s2),  # type: ignore[attr-defined]
+        (gb * b[0], gb * b[1], gb * b[2]), (ab * b[3], ab * b[4], ab * b[5]),
+        (rng.key(seed, g, 0), rng.key(seed, g, 1), rng.key(seed, g, 2)),
+        (rng.key(seed, a, 0), rng.key(seed, a, 1), rng.key(seed, a, 2)),
+        tuple(rng.key(seed, m, i) for i in range(6)),  # type: ignore[arg-type]
+        period, float(p.mocap_delay_s), float(p.mocap_pos_noise_m), float(p.mocap_att_noise_rad),  # type: ignore[attr-defined]
+        float(lowpass_alpha(2.0 * math.pi * p.velocity_filter_hz, period)),  # type: ignore[attr-defined]
+        float(lowpass_alpha(2.0 * math.pi * p.accel_filter_hz, period)))  # type: ignore[attr-defined]
+
+
+@jitable
+def imu_sample(c: SensorConst, body: RigidBody, forces: Forces, k: int) -> tuple[Vec3, Vec3]:
+    """Gyro [rad/s] and accelerometer [m/s^2] readings at step ``k``: truth + bias + white noise."""
+    gk, ak = c.gyro_keys, c.accel_keys
+    gn, an = c.gyro_noise_rad_s, c.accel_noise_m_s2
+    w, gb = body.omega_rad_s, c.gyro_bias_rad_s
+    f, ab = forces.specific_force_body_m_s2, c.accel_bias_m_s2
+    return (
+        (w[0] + gb[0] + gn * rng.normal(gk[0], k), w[1] + gb[1] + gn * rng.normal(gk[1], k),
+         w[2] + gb[2] + gn * rng.normal(gk[2], k)),
+        (f[0] + ab[0] + an * rng.normal(ak[0], k), f[1] + ab[1] + an * rng.normal(ak[1], k),
+         f[2] + ab[2] + an * rng.normal(ak[2], k)),
+    )
+
+
+@jitable
+def mocap_init(body: RigidBody) -> MocapState:
+    empty = Pending(0.0, 0.0, ZERO3, quat.IDENTITY)
+    return MocapState(0.0, 0, (empty, empty, empty, empty), 0,
+                      MocapSample(0.0, body.pos_ned_m, ZERO3, ZERO3, body.q), False, ZERO3)
+
+
+@jitable
+def mocap_step(c: SensorConst, st: MocapState, t_s: float, body: RigidBody) -> tuple[MocapState, bool]:
+    """Take a sample when one is due, deliver those whose delay has passed; (state, delivered)."""
+    next_s, taken, pending, n = st.next_s, st.taken, st.pending, st.n_pending
+    if t_s + 1e-9 < next_s and (n == 0 or pending[PENDING - n].due_s > t_s + 1e-9):
+        return st, False  # 15 of 16 steps: nothing to take or deliver, the state is not rebuilt
+    if t_s + 1e-9 >= next_s:
+        k, pn, an = c.mocap_keys, c.mocap_pos_noise_m, c.mocap_att_noise_rad
+        p = body.pos_ned_m
+        pos = (p[0] + pn * rng.normal(k[0], taken), p[1] + pn * rng.normal(k[1], taken),
+               p[2] + pn * rng.normal(k[2], taken))
+        q = quat.mul(body.q, quat.exp((an * rng.normal(k[3], taken), an * rng.normal(k[4], taken),
+                                       an * rng.normal(k[5], taken))))
+        pending = pending[1:] + (Pending(t_s + c.mocap_delay_s, t_s, pos, q),)
+        n = min(n + 1, PENDING)
+        taken += 1
+        next_s += c.mocap_period_s
+    latest, has_prev, pos_prev = st.latest, st.has_prev, st.pos_prev
+    fresh = False
+    while n > 0 and pending[PENDING - n].due_s <= t_s + 1e-9:
+        sample = pending[PENDING - n]
+        n -= 1
+        latest, has_prev, pos_prev = _deliver(c, latest, has_prev, pos_prev, sample.taken_s, sample.pos_ned_m,
+                                              sample.q)
+        fresh = True
+    return MocapState(next_s, taken, pending, n, latest, has_prev, pos_prev), fresh
+
+
+@jitable
+def _deliver(c: SensorConst, latest: MocapSample, has_prev: bool, prev: Vec3, taken_s: float, pos: Vec3,
+             q: Quat) -> tuple[MocapSample, bool, Vec3]:
+    """Differentiate with the samples' own timestamps (they fall on the plant's time grid)."""
+    if not has_prev:
+        return MocapSample(taken_s, pos, ZERO3, ZERO3, q), True, pos
+    inv = 1.0 / (taken_s - latest.time_s)
+    av, aa = c.velocity_alpha, c.accel_alpha
+    v0 = latest.vel_ned_m_s
+    vel = (v0[0] + av * ((pos[0] - prev[0]) * inv - v0[0]), v0[1] + av * ((pos[1] - prev[1]) * inv - v0[1]),
+           v0[2] + av * ((pos[2] - prev[2]) * inv - v0[2]))
+    a0 = latest.accel_ned_m_s2
+    acc = (a0[0] + aa * ((vel[0] - v0[0]) * inv - a0[0]), a0[1] + aa * ((vel[1] - v0[1]) * inv - a0[1]),
+           a0[2] + aa * ((vel[2] - v0[2]) * inv - a0[2]))
+    return MocapSample(taken_s, pos, vel, acc, q), True, pos
+
+
+# --- wind: mean + Dryden turbulence ---------------------------------------------------------------------
+
+
+class WindConst(NamedTuple):
+    mean_ned_m_s: Vec3
+    enabled: bool
+    u: tuple[float, float]
+    v: tuple[float, float, float, float, float]
+    w: tuple[float, float, float, float, float]
+    cv: tuple[float, float]
+    cw: tuple[float, float]
+    sigma: Vec3
+    cos_heading: float
+    sin_heading: float
+    keys: tuple[int, int, int]
+    init_keys: tuple[int, int, int, int, int, int]
+    chol_v: tuple[float, float, float]
+    chol_w: tuple[float, float, float]
+
+
+class WindState(NamedTuple):
+    xu: float
+    xv: tuple[float, float]
+    xw: tuple[float, float]
+
+
+def wind_const(params: object, seed: int, dt_s: float) -> WindConst:
+    """The Dryden forming filters of :mod:`sitl.plant.wind` for ``params``, with the vehicle's keys."""
+    from .wind import _first_order, _second_order, dryden_low_altitude
+
+    p = params
+    tp = p.turbulence  # type: ignore[attr-defined]
+    m = tuple(float(x) for x in p.mean_ned_m_s)  # type: ignore[attr-defined]
+    s = rng.STREAMS["wind"]
+    keys = (rng.key(seed, s, 0), rng.key(seed, s, 1), rng.key(seed, s, 2))
+    init_keys = tuple(rng.key(seed, s, 3 + i) for i in range(6))
+    if not tp.enabled:
+        z5 = (0.0, 0.0, 0.0, 0.0, 0.0)
+        return WindConst(m, False, (0.0, 0.0), z5, z5, (0.0, 0.0), (0.0, 0.0), ZERO3, 1.0, 0.0, keys,  # type: ignore[arg-type]
+                         init_keys, ZERO3, ZERO3)  # type: ignore[arg-type]
+    horiz = math.hypot(m[0], m[1])
+    airspeed = max(math.sqrt(horiz**2 + m[2] ** 2), tp.min_airspeed_m_s)
+    heading = math.atan2(m[1], m[0]) if horiz > 1e-9 else 0.0
+    if any(x > 0.0 for x in tp.sigma_m_s):
+        sigma = tp.sigma_m_s
+        _, lengths = dryden_low_altitude(tp.altitude_m, 1.0)
+    else:
+        sigma, lengths = dryden_low_altitude(tp.altitude_m, tp.w20_m_s)
+    u = _first_order(dt_s, lengths[0] / airspeed)
+    v, cv, chol_v = _second_order(dt_s, lengths[1] / airspeed)
+    w, cw, chol_w = _second_order(dt_s, lengths[2] / airspeed)
+    return WindConst(m, True, u, v, w, cv, cw, tuple(float(x) for x in sigma), math.cos(heading),  # type: ignore[arg-type]
+                     math.sin(heading), keys, init_keys,  # type: ignore[arg-type]
+                     (float(chol_v[0, 0]), float(chol_v[1, 0]), float(chol_v[1, 1])),
+                     (float(chol_w[0, 0]), float(chol_w[1, 0]), float(chol_w[1, 1])))
+
+
+@jitable
+def wind_init(c: WindConst) -> WindState:
+    """Every forming filter started in its stationary distribution, not in calm air."""
+    k = c.init_keys
+    n0 = (rng.normal(k[0], 0), rng.normal(k[1], 0), rng.normal(k[2], 0))
+    n1v, n1w = rng.normal(k[4], 0), rng.normal(k[5], 0)
+    cv, cw = c.chol_v, c.chol_w
+    return WindState(n0[0], (cv[0] * n0[1], cv[1] * n0[1] + cv[2] * n1v), (cw[0] * n0[2], cw[1] * n0[2] + cw[2] * n1w))
+
+
+@jitable
+def wind_step(c: WindConst, st: WindState, k: int) -> tuple[WindState, Vec3]:
+    """The NED wind [m/s] at step ``k``: the mean plus the turbulence rotated from the wind axes."""
+    m = c.mean_ned_m_s
+    if not c.enabled:
+        return st, m
+    keys = c.keys
+    n0, n1, n2 = rng.normal(keys[0], k), rng.normal(keys[1], k), rng.normal(keys[2], k)
+    a, b = c.u
+    xu = a * st.xu + b * n0
+    p11, p21, p22, g1, g2 = c.v
+    x1, x2 = st.xv
+    xv = (p11 * x1 + g1 * n1, p21 * x1 + p22 * x2 + g2 * n1)
+    p11, p21, p22, g1, g2 = c.w
+    x1, x2 = st.xw
+    xw = (p11 * x1 + g1 * n2, p21 * x1 + p22 * x2 + g2 * n2)
+    s, cv, cw = c.sigma, c.cv, c.cw
+    u, v, w = s[0] * xu, s[1] * (cv[0] * xv[0] + cv[1] * xv[1]), s[2] * (cw[0] * xw[0] + cw[1] * xw[1])
+    co, si = c.cos_heading, c.sin_heading
+    return WindState(xu, xv, xw), (m[0] + co * u - si * v, m[1] + si * u + co * v, m[2] + w)
+
+
+# --- external forces and torques ----------------------------------------------------------------------
+
+PROFILE_KINDS = ("constant", "step", "chirp")
+
+
+def profiles_array(profiles: object) -> NDArray[np.float64]:
+    """Profiles (:class:`sitl.plant.disturbances.Profile`) as rows ``kind, value (3), start, stop,
+    rise, f0, f1, end_scale`` (at least one row, all zero for none: a step that never starts)."""
+    rows = [[PROFILE_KINDS.index(p.kind), *p.value, p.start_s, p.stop_s, p.rise_s, p.f0_hz, p.f1_hz, p.end_scale]
+            for p in profiles]  # type: ignore[attr-defined]
+    arr = np.array(rows, dtype=np.float64).reshape(-1, 10)
+    return arr
+
+
+@jitable
+def profile_factor(row: NDArray[np.float64], t_s: float) -> float:
+    """The scalar multiplying a profile's value at ``t_s`` (see :class:`sitl.plant.disturbances.Profile`)."""
+    kind, start, stop = int(row[0]), row[4], row[5]
+    if kind == 0:
+        return 1.0
+    if t_s < start or t_s >= stop:
+        return 0.0
+    tau = t_s - start
+    if kind == 1:
+        rise = row[6]
+        return min(1.0, tau / rise) if rise > 0.0 else 1.0
+    f0, f1, end_scale = row[7], row[8], row[9]
+    span = stop - start
+    sweep = (f1 - f0) / span
+    phase = 2.0 * math.pi * (f0 * tau + 0.5 * sweep * tau * tau)
+    amplitude = 1.0 + (end_scale - 1.0) * tau / span
+    return amplitude * math.sin(phase)
+
+
+@jitable
+def profiles_at(rows: NDArray[np.float64], t_s: float) -> Vec3:
+    """Sum of the profiles at ``t_s``."""
+    x = 0.0
+    y = 0.0
+    z = 0.0
+    for i in range(rows.shape[0]):
+        k = profile_factor(rows[i], t_s)
+        if k != 0.0:
+            x = x + k * rows[i, 1]
+            y = y + k * rows[i, 2]
+            z = z + k * rows[i, 3]
+    return (x, y, z)
+
+
+# --- the vehicle: plant + environment + sensors + onboard 1 kHz loop -------------------------------------------
+
+
+class VehicleConst(NamedTuple):
+    dt_s: float
+    plant: PlantConst
+    sensors: SensorConst
+    wind: WindConst
+    forces: NDArray[np.float64]
+    torques: NDArray[np.float64]
+    attitude: AttitudeConst
+    rotors: RotorModel
+    """the firmware's nominal rotors (the mixer)"""
+    command_min_rad_s: float
+    command_max_rad_s: float
+    command_step_rad_s: float
+    estimator_attitude_gain: float
+    estimator_bias_gain: float
+
+
+class VehicleState(NamedTuple):
+    k: int
+    """plant steps so far (the noise counter of the per-step draws)"""
+    t_s: float
+    body: RigidBody
+    forces: Forces
+    wind_state: WindState
+    wind_ned_m_s: Vec3
+    gyro_rad_s: Vec3
+    """last IMU sample"""
+    specific_force_body_m_s2: Vec3
+    sf_sum: Vec3
+    """sum of the accelerometer samples since the position loop last read them"""
+    sf_count: int
+    mocap: MocapState
+    q_est: Quat
+    gyro_bias_est: Vec3
+    omega_est: Vec3
+    """bias-corrected gyro rate the firmware uses"""
+    attitude: AttitudeState
+    torque_applied_nm: Vec3
+    thrust_applied_n: float
+    rotor_cmd_rad_s: Rotors4
+
+
+def vehicle_const(sc: object, attitude_kind: str, seed: int) -> VehicleConst:
+    """Everything about one vehicle that does not change in flight (``sc`` a Scenario)."""
+    dt = 1.0 / sc.plant_rate_hz  # type: ignore[attr-defined]
+    v, af = sc.vehicle, sc.airframe  # type: ignore[attr-defined]
+    levels = af.rotor_command_levels
+    w_min, w_max = v.rotor_speed_min_rad_s, v.rotor_speed_max_rad_s
+    est = sc.estimator  # type: ignore[attr-defined]
+    return VehicleConst(
+        dt, plant_const(sc.plant_vehicle, af, dt), sensor_const(sc.sensors, seed, dt),  # type: ignore[attr-defined]
+        wind_const(sc.wind, seed, dt), profiles_array(sc.forces), profiles_array(sc.torques),  # type: ignore[attr-defined]
+        attitude_const(attitude_kind, sc.attitude, v.inertia_kg_m2, dt), RotorModel.of(v),  # type: ignore[attr-defined]
+        w_min, w_max, (w_max - w_min) / (levels - 1), float(est.attitude_gain), float(est.bias_gain))
+
+
+@jitable
+def vehicle_init(c: VehicleConst, pos_ned_m: Vec3, yaw_rad: float, hovering: bool) -> VehicleState:
+    """At ``pos_ned_m``, level, rotors at hover speed (or stopped on the ground)."""
+    p = c.plant
+    w = math.sqrt(p.weight_n / (4.0 * p.rotors.k_thrust_n_s2)) if hovering else 0.0
+    q = quat.from_yaw(yaw_rad)
+    body = RigidBody(pos_ned_m, ZERO3, q, ZERO3, (w, w, w, w))
+    sf0 = (0.0, 0.0, -p.gravity_m_s2)
+    return VehicleState(0, 0.0, body, Forces(sf0, 0.0, ZERO3, ZERO3, ZERO3), wind_init(c.wind), c.wind.mean_ned_m_s,
+                        ZERO3, sf0, ZERO3, 0, mocap_init(body), q, ZERO3, ZERO3, attitude_init(), ZERO3, 0.0,
+                        (0.0, 0.0, 0.0, 0.0))
+
+
+@jitable
+def quantise(c: VehicleConst, w_sq: Rotors4) -> Rotors4:
+    """Rotor speed commands [rad/s] for squared speeds: clipped to range, then quantised (8 bit)."""
+    lo, hi, step = c.command_min_rad_s, c.command_max_rad_s, c.command_step_rad_s
+    return (command_level(w_sq[0], lo, hi, step), command_level(w_sq[1], lo, hi, step),
+            command_level(w_sq[2], lo, hi, step), command_level(w_sq[3], lo, hi, step))
+
+
+@jitable
+def vehicle_step(c: VehicleConst, st: VehicleState, sp: AttitudeSetpoint, motors_on: bool,
+                 extra_force_ned_n: Vec3, extra_torque_nm: Vec3) -> VehicleState:
+    """One plant step with the firmware tracking ``sp``."""
+    dt, t = c.dt_s, st.t_s
+    b = st.gyro_bias_est
+    g = st.gyro_rad_s
+    omega = (g[0] - b[0], g[1] - b[1], g[2] - b[2])
+    q_est = quat.integrate(st.q_est, omega, dt)
+    attitude = st.attitude
+    if motors_on:
+        attitude, tau = attitude_step(c.attitude, attitude, q_est, omega, sp.q_d, sp.omega_d_rad_s,
+                                      st.torque_applied_nm, sp.omega_d_dot_rad_s2)
+        cmd = quantise(c, rotor_speeds_sq_for(tau, sp.thrust_n, c.rotors))
+        torque_applied, thrust_applied = wrench_from_rotor_speeds(cmd, c.rotors)
+    else:
+        cmd, torque_applied, thrust_applied = (0.0, 0.0, 0.0, 0.0), ZERO3, 0.0
+    wind_state, wind = wind_step(c.wind, st.wind_state, st.k)
+    f = profiles_at(c.forces, t)
+    force = (f[0] + extra_force_ned_n[0], f[1] + extra_force_ned_n[1], f[2] + extra_force_ned_n[2])
+    tq = profiles_at(c.torques, t)
+    torque = (tq[0] + extra_torque_nm[0], tq[1] + extra_torque_nm[1], tq[2] + extra_torque_nm[2])
+    body, forces = plant_step(c.plant, st.body, cmd, wind, force, torque, dt)
+    gyro, sf = imu_sample(c.sensors, body, forces, st.k)
+    s = st.sf_sum
+    t = t + dt
+    mocap, fresh = mocap_step(c.sensors, st.mocap, t, body)
+    bias = b
+    if fresh:
+        q_est, bias = estimator_correct(c.estimator_attitude_gain, c.estimator_bias_gain, q_est, bias,
+                                        mocap.latest.q)
+    return VehicleState(st.k + 1, t, body, forces, wind_state, wind, gyro, sf,
+                        (s[0] + sf[0], s[1] + sf[1], s[2] + sf[2]), st.sf_count + 1,
+                        mocap, q_est, bias, omega, attitude, torque_applied, thrust_applied, cmd)
+
+
+@jitable
+def mean_specific_force(st: VehicleState) -> Vec3:
+    """Mean accelerometer reading since the position loop last read it (the last one if none)."""
+    n = st.sf_count
+    if n == 0:
+        return st.specific_force_body_m_s2
+    k = 1.0 / n
+    s = st.sf_sum
+    return (s[0] * k, s[1] * k, s[2] * k)
+
+
+# --- a flight: the vehicle flown by the position loop, logged --------------------------------------------------
+
+LOG_COLUMNS = (
+    "t",
+    "x", "y", "z",
+    "vx", "vy", "vz",
+    "x_ref", "y_ref", "z_ref",
+    "vx_ref", "vy_ref", "vz_ref",
+    "yaw_ref",
+    "qw", "qx", "qy", "qz",
+    "qw_d", "qx_d", "qy_d", "qz_d",
+    "p", "q", "r",
+    "p_d", "q_d", "r_d",
+    "thrust_sp",
+    "fx", "fy", "fz",
+    "hfx_hat", "hfy_hat", "hfz_hat",
+    "hfx", "hfy", "hfz",
+    "htx_hat", "hty_hat", "htz_hat",
+    "htx", "hty", "htz",
+    "sx_att", "sy_att", "sz_att",
+    "sx_pos", "sy_pos", "sz_pos",
+    "wind_x", "wind_y", "wind_z",
+)
+"""Logged signals. Position/velocity are true (NED, m, m/s); q is the true attitude; p, q, r
+true body rates; *_d the setpoint; f the position loop's force [N]; hf* the force disturbance
+(true lumped drag + external force, and the estimate) [N]; ht* the torque disturbance [N m]."""
+
+
+class FlightConst(NamedTuple):
+    vehicle: VehicleConst
+    loop: LoopConst
+    trajectory: TrajectoryConst
+    waypoints: NDArray[np.float64]
+    """rows ``at_s, x, y, z, yaw_rad`` (the first is the hover setpoint, at -inf)"""
+    filtered: bool
+    """the reference follows the waypoints through the filter (else it jumps to the setpoint)"""
+    pos_div: int
+    log_div: int
+    observer_uses_imu: bool
+    gravity_m_s2: float
+
+
+def flight_const(sc: object, position_kind: str, attitude_kind: str, seed: int) -> FlightConst:
+    v = vehicle_const(sc, attitude_kind, seed)
+    pos_div = int(round(sc.plant_rate_hz / sc.position_rate_hz))  # type: ignore[attr-defined]
+    pos_dt = pos_div * v.dt_s
+    g = sc.position  # type: ignore[attr-defined]
+    pc = position_const(position_kind, g, sc.vehicle.mass_kg, sc.vehicle.gravity_m_s2, pos_dt)  # type: ignore[attr-defined]
+    lc = loop_const(pc, g, sc.vehicle, sc.reference, rate_const(sc.reference, pos_dt))  # type: ignore[attr-defined]
+    sp = sc.setpoint  # type: ignore[attr-defined]
+    rows = [[-math.inf, *sp.position_ned_m, math.radians(sp.yaw_deg)]]
+    rows += [[w.at_s, *w.position_ned_m, math.radians(w.yaw_deg)] for w in sp.waypoints]
+    return FlightConst(v, lc, TrajectoryConst.of(sc.trajectory), np.array(rows, dtype=np.float64),  # type: ignore[attr-defined]
+                       bool(sp.waypoints), pos_div, max(1, int(round(sc.plant_rate_hz / sc.log_rate_hz))),  # type: ignore[attr-defined]
+                       bool(g.observer_uses_imu), float(sc.vehicle.gravity_m_s2))  # type: ignore[attr-defined]
+
+
+@jitable
+def target_at(rows: NDArray[np.float64], t_s: float) -> tuple[Vec3, float]:
+    """The setpoint's target and yaw at ``t_s``: the last waypoint whose time has come."""
+    i = 0
+    for j in range(1, rows.shape[0]):
+        if t_s >= rows[j, 0]:
+            i = j
+    return (rows[i, 1], rows[i, 2], rows[i, 3]), rows[i, 4]
+
+
+@jitable
+def fly_loop(c: FlightConst, steps: int, log: NDArray[np.float64]) -> VehicleState:
+    """Fly ``steps`` plant steps from a hover at the setpoint; log every ``log_div`` steps into
+    ``log`` (rows of LOG_COLUMNS; ``log.shape[0]`` rows at most). Returns the final state."""
+    vc = c.vehicle
+    pos0, yaw0 = target_at(c.waypoints, 0.0)
+    st = vehicle_init(vc, pos0, yaw0, True)
+    hover = c.loop.position.mass_kg * c.gravity_m_s2  # the controller's nominal weight
+    ls = LoopState(position_init(), ZERO3, hover, quat.IDENTITY, False, rate_init())
+    sp = AttitudeSetpoint(st.body.q, ZERO3, hover, ZERO3)
+    ref_state = ReferenceState(pos0, ZERO3, ZERO3, yaw0)
+    ref = PositionReference(pos0, ZERO3, ZERO3, yaw0)
+    pos_dt = c.pos_div * vc.dt_s
+    row = 0
+    g = c.gravity_m_s2
+    for k in range(steps):
+        if k % c.pos_div == 0:
+            target, yaw = target_at(c.waypoints, st.t_s)
+            if c.filtered:
+                ref_state = reference_filter_step(c.trajectory, ref_state, target, yaw, pos_dt)
+                ref = PositionReference(ref_state.pos_ned_m, ref_state.vel_ned_m_s, ref_state.accel_ned_m_s2,
+                                        ref_state.yaw_rad)
+            else:
+                ref = PositionReference(target, ZERO3, ZERO3, yaw)
+            ms = st.mocap.latest
+            if c.observer_uses_imu:
+                sf_ned = quat.rotate(st.q_est, mean_specific_force(st))
+            else:
+                a = ms.accel_ned_m_s2
+                sf_ned = (a[0], a[1], a[2] - g)
+            st = _drained(st)
+            ls, sp = position_loop_step(c.loop, ls, ms.pos_ned_m, ms.vel_ned_m_s, st.q_est, sf_ned, True, ref)
+        st = vehicle_step(vc, st, sp, True, ZERO3, ZERO3)
+        if k % c.log_div == 0 and row < log.shape[0]:
+            _log_row(log[row], vc, st, ref, sp, ls)
+            row += 1
+    return st
+
+
+@jitable
+def _drained(st: VehicleState) -> VehicleState:
+    """``st`` with the accelerometer sum emptied (the position loop has read it)."""
+    return VehicleState(st.k, st.t_s, st.body, st.forces, st.wind_state, st.wind_ned_m_s, st.gyro_rad_s,
+                        st.specific_force_body_m_s2, ZERO3, 0, st.mocap, st.q_est, st.gyro_bias_est, st.omega_est,
+                        st.attitude, st.torque_applied_nm, st.thrust_applied_n, st.rotor_cmd_rad_s)
+
+
+@jitable
+def _log_row(out: NDArray[np.float64], vc: VehicleConst, st: VehicleState, ref: PositionReference,
+             sp: AttitudeSetpoint, ls: LoopState) -> None:
+    b, f = st.body, st.forces
+    h_att = attitude_disturbance_estimate(vc.attitude, st.attitude)
+    vals = (st.t_s, b.pos_ned_m[0], b.pos_ned_m[1], b.pos_ned_m[2], b.vel_ned_m_s[0], b.vel_ned_m_s[1],
+            b.vel_ned_m_s[2], ref.pos_ned_m[0], ref.pos_ned_m[1], ref.pos_ned_m[2], ref.vel_ned_m_s[0],
+            ref.vel_ned_m_s[1], ref.vel_ned_m_s[2], ref.yaw_rad, b.q[0], b.q[1], b.q[2], b.q[3],
+            sp.q_d[0], sp.q_d[1], sp.q_d[2], sp.q_d[3], b.omega_rad_s[0], b.omega_rad_s[1], b.omega_rad_s[2],
+            sp.omega_d_rad_s[0], sp.omega_d_rad_s[1], sp.omega_d_rad_s[2], sp.thrust_n,
+            ls.force_n[0], ls.force_n[1], ls.force_n[2],
+            ls.position.estimate_n[0], ls.position.estimate_n[1], ls.position.estimate_n[2],
+            f.disturbance_force_ned_n[0], f.disturbance_force_ned_n[1], f.disturbance_force_ned_n[2],
+            h_att[0], h_att[1], h_att[2],
+            f.disturbance_torque_nm[0], f.disturbance_torque_nm[1], f.disturbance_torque_nm[2],
+            st.attitude.s[0], st.attitude.s[1], st.attitude.s[2],
+            ls.position.s[0], ls.position.s[1], ls.position.s[2],
+            st.wind_ned_m_s[0], st.wind_ned_m_s[1], st.wind_ned_m_s[2])
+    for i in range(len(vals)):
+        out[i] = vals[i]
+
+
+def _example() -> FlightConst:
+    from .scenario import Scenario
+
+    return flight_const(Scenario(name="codec"), "ism_do", "ism_do", 1)
+
+
+FLIGHT_CODEC = codec(_example())
+"""Per-vehicle rows of a batch: every number of a :class:`FlightConst`; its arrays (the force and
+torque profiles, the waypoints: ``FLIGHT_CODEC.arrays(c)``) are the batch's."""
+_unpack_flight = FLIGHT_CODEC.unpack
+
+
+def fly_many(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
+             waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
+             final: NDArray[np.float64]) -> None:
+    """:func:`fly_loop` for each vehicle (a row of ``FLIGHT_CODEC``, with the batch's arrays), in
+    parallel over the vehicles (``prange``); ``logs[i]`` gets vehicle i's log, ``final[i]`` its
+    last position."""
+    for i in prange(rows.shape[0]):
+        st = fly_loop(_unpack_flight(rows[i], forces, torques, waypoints), steps, logs[i])
+        p = st.body.pos_ned_m
+        final[i, 0] = p[0]
+        final[i, 1] = p[1]
+        final[i, 2] = p[2]
+
+
+fly_batch = kernel(fly_many, parallel=True)
+""":func:`fly_many` compiled (cached on disk), its loop over vehicles parallel on every core; or as
+it is without numba. One vehicle flies as a batch of one: a single kernel to compile (~20 s)."""

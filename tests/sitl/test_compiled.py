@@ -1,0 +1,122 @@
+"""The compiled kernel (sitl/plant/kernel.py) against the paths it must agree with.
+
+- interpreted (NUMBA_DISABLE_JIT=1, in a subprocess) and compiled: the same source, the same
+  numbers within 1e-12 over a full E3 flight in turbulent wind with every noise on (the noise is
+  counter-based, so both draw the same numbers);
+- compiled and the object-based simulator (the live vehicle's path) with noise off: the same laws,
+  the same flight, for each experiment and every controller family;
+- a batch (vehicles in parallel threads, each with its own seed and gains) and the same vehicles
+  flown one at a time: bit for bit.
+
+The kernel is compiled once per source digest and cached on disk (companion/control/jit.py), so
+only the first run on a machine pays the compile (~20 s).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sitl.lab.simulation import LOG_COLUMNS, simulate
+from sitl.lab.sweep import Member, stack_gains
+from sitl.plant.scenario import Scenario, load_scenario
+from sitl.plant.sensors import SensorParams
+
+pytest.importorskip("numba")
+
+ROOT = Path(__file__).resolve().parents[2]
+
+QUIET = SensorParams(gyro_noise_rad_s=0.0, gyro_bias_rad_s=0.0, accel_noise_m_s2=0.0, accel_bias_m_s2=0.0,
+                     mocap_pos_noise_m=0.0, mocap_att_noise_rad=0.0)
+"""every sensor exact: the two simulators then draw nothing (their noise generators differ)"""
+
+
+def _quiet(sc: Scenario) -> Scenario:
+    """``sc`` without noise or turbulence.
+
+    The paths must agree to the last bits, not merely closely: the 8-bit rotor commands turn a
+    difference of one ulp that lands on a level boundary into a whole level (4 rad/s), and the
+    flights then part by 1e-4 m (this is how CPython's ``x ** 0.5``, a pow() one ulp off where
+    compiled code takes the square root, was found)."""
+    wind = dataclasses.replace(sc.wind, turbulence=dataclasses.replace(sc.wind.turbulence, enabled=False))
+    return sc.with_changes(sensors=QUIET, wind=wind)
+
+
+def _table(log: object) -> np.ndarray:
+    return np.column_stack([log[c] for c in LOG_COLUMNS])  # type: ignore[index]
+
+
+INTERPRETED = """
+import sys
+import numpy as np
+from sitl.lab.simulation import LOG_COLUMNS, simulate
+from sitl.plant.scenario import load_scenario
+
+log = simulate(load_scenario("E3_wind"), "ism_do", "ism_do", 7, engine="compiled")
+np.save(sys.argv[1], np.column_stack([log[c] for c in LOG_COLUMNS]))
+"""
+
+
+def test_interpreted_and_compiled_kernels_agree_over_a_full_e3_flight_in_turbulence(tmp_path: Path) -> None:
+    out = tmp_path / "interpreted.npy"
+    env = {**os.environ, "NUMBA_DISABLE_JIT": "1", "PYTHONPATH": str(ROOT)}
+    # the interpreted flight (~7 s of CPU) runs in its own process while this one flies compiled
+    proc = subprocess.Popen([sys.executable, "-c", INTERPRETED, str(out)], cwd=ROOT, env=env)
+    try:
+        sc = load_scenario("E3_wind")
+        assert sc.wind.turbulence.enabled and sc.sensors.gyro_noise_rad_s > 0.0  # the flight draws noise
+        compiled = _table(simulate(sc, "ism_do", "ism_do", 7, engine="compiled"))
+        assert proc.wait(timeout=600) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    interpreted = np.load(out)
+    assert compiled.shape == interpreted.shape == (int(sc.duration_s * sc.log_rate_hz), len(LOG_COLUMNS))
+    assert np.isfinite(compiled).all()
+    np.testing.assert_allclose(compiled, interpreted, rtol=0, atol=1e-12)
+    # and the flight is not trivially still: turbulence moved it by centimetres
+    assert np.ptp(compiled[:, LOG_COLUMNS.index("x")]) > 0.01
+
+
+@pytest.mark.parametrize(("name", "position", "attitude", "duration_s"), [
+    ("E3_wind", "ism_do", "ism_do", None),
+    ("E3_wind", "pid", "pd", 10.0),
+    ("E3_calm", "aibc", "pd_do", 10.0),
+    ("E1_step_force", "pd_do", "ism_do", 10.0),
+    ("E2_chirp_torque", "ism_do", "ism_do", 6.0),
+    ("E4_waypoints", "ism_do", "ism_do", 12.0),
+    ("E5_suspended_weight", "indi", "indi", 8.0),
+])
+def test_compiled_kernel_flies_as_the_object_simulator(name: str, position: str, attitude: str,
+                                                      duration_s: float | None) -> None:
+    sc = _quiet(load_scenario(name))
+    compiled = _table(simulate(sc, position, attitude, 3, duration_s, engine="compiled"))
+    objects = _table(simulate(sc, position, attitude, 3, duration_s, engine="objects"))
+    assert compiled.shape == objects.shape
+    scale = np.maximum(np.abs(objects).max(axis=0), 1.0)
+    worst = np.abs(compiled - objects).max(axis=0) / scale
+    assert worst.max() < 1e-12, dict(zip(LOG_COLUMNS, worst))
+
+
+def test_a_parallel_batch_flies_each_vehicle_as_it_flies_alone() -> None:
+    """Five vehicles, two gain sets, in parallel threads: each is bit for bit its one-vehicle run
+    (threads share nothing but the read-only profiles and waypoints)."""
+    sc = load_scenario("E1_step_force").with_changes(duration_s=3.0)
+    stiff = sc.with_changes(position=dataclasses.replace(sc.position, omega_c_rad_s=(2.5, 2.5, 1.5)))
+    members = [Member({}, sc, (4, 9, 11)), Member({}, stiff, (4, 20))]
+    batch = simulate(stack_gains(members), "ism_do", "ism_do", [4, 9, 11, 4, 20], engine="compiled")
+    i = 0
+    for m in members:
+        for seed in m.seeds:
+            one = simulate(m.scenario, "ism_do", "ism_do", seed, engine="compiled")
+            np.testing.assert_array_equal(_table(batch.vehicle(i)), _table(one))
+            i += 1
+    # the two gain sets did fly differently (the gains reached the vehicles)
+    assert np.abs(batch["x"][:, 0] - batch["x"][:, 3]).max() > 1e-4
