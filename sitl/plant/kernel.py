@@ -49,6 +49,7 @@ from . import rng
 from .body import Forces, PlantConst, RigidBody, plant_const, plant_step
 from .codec import codec
 from .onboard import command_level, estimator_correct
+from .sensors import MocapSample
 
 try:
     from numba import prange
@@ -86,17 +87,6 @@ class SensorConst(NamedTuple):
     mocap_att_noise_rad: float
     velocity_alpha: float
     accel_alpha: float
-
-
-class MocapSample(NamedTuple):
-    """Latest delivered tracking data and what is derived from it."""
-
-    time_s: float
-    """time the delivered sample was taken"""
-    pos_ned_m: Vec3
-    vel_ned_m_s: Vec3
-    accel_ned_m_s2: Vec3
-    q: Quat
 
 
 class Pending(NamedTuple):
