@@ -64,15 +64,29 @@ def test_px4_after_a_disarm_returns_to_the_users_mode_and_refuses_to_arm_there_w
     # busy host can delay the switch past the stream's timeout if the stream stops first
     stream(m, px4.sysid, 1.5, (1.0, 0, 0, 0), 0.5)
     m.mav.command_long_send(px4.sysid, 1, 176, 0, 1, 6, 0, 0, 0, 0, 0)  # OFFBOARD
-    stream(m, px4.sysid, 0.5, (1.0, 0, 0, 0), 0.5)
-    assert latest(m, "HEARTBEAT").custom_mode == px4_custom_mode("OFFBOARD") or heartbeat(
-        m, lambda h: h.custom_mode == px4_custom_mode("OFFBOARD"))
-    assert command(m, px4, 176, 1, 4, 6) == 0  # LAND (by mode)
+    _stream_until_mode(m, px4, "OFFBOARD")
+    m.mav.command_long_send(px4.sysid, 1, 176, 0, 1, 4, 6, 0, 0, 0, 0)  # LAND (by mode), still streaming:
+    _stream_until_mode(m, px4, "LAND")  # an offboard-loss failsafe first would be another test
     heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=60)
     time.sleep(0.5)
     h = heartbeat(m)
     assert h.custom_mode == px4_custom_mode("OFFBOARD"), h
     assert command(m, px4, 400, 1) != 0  # no stream in OFFBOARD: refused
+
+
+def _stream_until_mode(m, px4, mode: str, timeout: float = 10.0) -> None:
+    """Level setpoints at 50 Hz of wall time, reading between them, until a heartbeat says ``mode``."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        m.mav.set_attitude_target_send(0, px4.sysid, 1, 3, [1.0, 0, 0, 0], 0, 0, 0, 0.5)
+        stop = time.monotonic() + 0.02
+        while (msg := m.recv_match(blocking=True, timeout=max(stop - time.monotonic(), 0.001))) is not None:
+            if (msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1
+                    and msg.custom_mode == px4_custom_mode(mode)):
+                return
+            if time.monotonic() >= stop:
+                break
+    raise AssertionError(f"not in {mode} within {timeout} s")
 
 
 def _airborne_in_offboard(m, px4, hover: float = 0.5) -> None:

@@ -151,8 +151,8 @@ def test_an_attacker_neither_stops_nor_slows_another_clients_telemetry_nor_the_w
     core, so a core keeps the world at its speed. Wall-clock speed is not asserted: on a busy host
     the attacker (in this process) and the other load take the cores the vehicle would need, which
     is not the vehicle's doing (recorded: simulated over wall time, calm and under attack)."""
-    s = sitl(speedup=SPEEDUP)
-    watcher = Watcher(s.url)
+    s = sitl("--wait-for-setpoints", "0.05", speedup=SPEEDUP)  # a starved controller pauses the world,
+    watcher = Watcher(s.url)  # it does not lose offboard: the attack, not this host, is under test
     c = Client(s.url)
     att = take_off(c)
     for kind, hz in ASKED_HZ.items():
