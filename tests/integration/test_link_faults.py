@@ -208,9 +208,13 @@ def test_an_outage_longer_than_the_offboard_timeout_ends_in_a_landing(tmp_path, 
                                                                           record_property)
     assert code == 1, out
     # "after a N s telemetry outage" is added when the outage is still recent as the companion sees
-    # the mode; a loaded host can deliver the heartbeat later than that (seen at load 7)
-    assert "left offboard (mode POSCTL)" in out
-    assert "has control: the companion stops here" in out and "holding, then landing" not in out
+    # the mode; a loaded host can deliver the heartbeat later than that (seen at load 7). On a busy
+    # host the companion may hear the vehicle again only once its failsafe has landed and disarmed
+    # it (back in HOLD, seen after a 2.7 s outage at load 6): then there is nothing left to leave.
+    landed_first = "left offboard (mode HOLD)" in out
+    assert "left offboard (mode POSCTL)" in out or landed_first
+    assert "has control: the companion stops here" in out or landed_first
+    assert "holding, then landing" not in out and "landing it" not in out
     assert not any("Failsafe cleared by mode change" in t for t in texts), texts
     assert any("Failsafe: offboard lost" in t for t in texts), texts
     assert _no_fly_away(pos) < 0.5
