@@ -85,10 +85,21 @@ def latest(m: mavutil.mavfile, kind: str, timeout: float = 5.0):
     return found if found is not None else wait(m, kind, timeout=timeout)
 
 
-def stream(m: mavutil.mavfile, sysid: int, seconds: float, q, thrust: float, type_mask: int = 3) -> None:
-    """SET_ATTITUDE_TARGET at 50 Hz of wall time for ``seconds``, reading (and dropping) what arrives."""
-    end = time.monotonic() + seconds
+def stream_until(m: mavutil.mavfile, sysid: int, q, thrust: float, done, timeout: float, type_mask: int = 3) -> bool:
+    """SET_ATTITUDE_TARGET at 50 Hz of wall time, every message read between two handed to ``done``,
+    until it returns True (then True) or for ``timeout`` seconds (then False)."""
+    end = time.monotonic() + timeout
     while time.monotonic() < end:
         m.mav.set_attitude_target_send(0, sysid, 1, type_mask, list(q), 0, 0, 0, thrust)
-        drain(m)
-        time.sleep(0.02)
+        stop = time.monotonic() + 0.02
+        while (msg := m.recv_match(blocking=True, timeout=max(stop - time.monotonic(), 0.001))) is not None:
+            if done(msg):
+                return True
+            if time.monotonic() >= stop:
+                break
+    return False
+
+
+def stream(m: mavutil.mavfile, sysid: int, seconds: float, q, thrust: float, type_mask: int = 3) -> None:
+    """SET_ATTITUDE_TARGET at 50 Hz of wall time for ``seconds``, reading (and dropping) what arrives."""
+    stream_until(m, sysid, q, thrust, lambda msg: False, seconds, type_mask)

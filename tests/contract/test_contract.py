@@ -11,7 +11,7 @@ from pymavlink import mavutil
 
 from companion.mavlink.modes import COPTER_MODES, px4_custom_mode
 
-from .conftest import latest, stream, wait
+from .conftest import latest, stream, stream_until, wait
 
 pytestmark = [pytest.mark.integration, pytest.mark.contract]
 
@@ -76,17 +76,11 @@ def test_px4_after_a_disarm_returns_to_the_users_mode_and_refuses_to_arm_there_w
 
 def _stream_until_mode(m, px4, mode: str, timeout: float = 10.0) -> None:
     """Level setpoints at 50 Hz of wall time, reading between them, until a heartbeat says ``mode``."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        m.mav.set_attitude_target_send(0, px4.sysid, 1, 3, [1.0, 0, 0, 0], 0, 0, 0, 0.5)
-        stop = time.monotonic() + 0.02
-        while (msg := m.recv_match(blocking=True, timeout=max(stop - time.monotonic(), 0.001))) is not None:
-            if (msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1
-                    and msg.custom_mode == px4_custom_mode(mode)):
-                return
-            if time.monotonic() >= stop:
-                break
-    raise AssertionError(f"not in {mode} within {timeout} s")
+    def in_mode(msg) -> bool:
+        return (msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1
+                and msg.custom_mode == px4_custom_mode(mode))
+
+    assert stream_until(m, px4.sysid, (1.0, 0, 0, 0), 0.5, in_mode, timeout), f"not in {mode} within {timeout} s"
 
 
 def _airborne_in_offboard(m, px4, hover: float = 0.5) -> None:
@@ -235,20 +229,25 @@ def _fly_and_record(m, copter, vehicle_s: float, q, thrust: float) -> list:
     vehicle's own stamps have advanced by ``vehicle_s`` (a busy host slows the vehicle: a window in
     wall time would hold less flight); every ATTITUDE and LOCAL_POSITION_NED of the autopilot meanwhile."""
     seen: list = []
-    first_ms = None
-    give_up = time.monotonic() + 5.0 * vehicle_s / copter.speed + 10.0
-    while time.monotonic() < give_up:
-        m.mav.set_attitude_target_send(0, copter.sysid, 1, 7, list(q), 0, 0, 0, thrust)
-        stop = time.monotonic() + 0.02
-        while (msg := m.recv_match(blocking=True, timeout=max(stop - time.monotonic(), 0.001))) is not None:
-            if msg.get_srcComponent() == 1 and msg.get_type() in ("ATTITUDE", "LOCAL_POSITION_NED"):
-                seen.append(msg)
-                first_ms = msg.time_boot_ms if first_ms is None else first_ms
-            if time.monotonic() >= stop:
-                break
-        if first_ms is not None and seen[-1].time_boot_ms - first_ms >= vehicle_s * 1e3:
-            return seen
-    raise AssertionError(f"the vehicle did not fly {vehicle_s} s within the wall time allowed")
+
+    def record(msg) -> bool:
+        if msg.get_srcComponent() == 1 and msg.get_type() in ("ATTITUDE", "LOCAL_POSITION_NED"):
+            seen.append(msg)
+        return bool(seen) and seen[-1].time_boot_ms - seen[0].time_boot_ms >= vehicle_s * 1e3
+
+    flown = stream_until(m, copter.sysid, q, thrust, record, 5.0 * vehicle_s / copter.speed + 10.0, type_mask=7)
+    assert flown, f"the vehicle did not fly {vehicle_s} s within the wall time allowed"
+    return seen
+
+
+def _lean_with(m, copter, param: str, value: float, level_s: float, roll_deg: float, lean_s: float, hover: float,
+               kind: str) -> list:
+    """``param`` set to ``value``, level for ``level_s``, then a ``roll_deg`` lean with the throttle that
+    holds altitude there for ``lean_s`` (vehicle seconds): the autopilot's ``kind`` messages of the lean."""
+    _set_param(m, copter, param, value)
+    _fly_and_record(m, copter, level_s, _roll(0.0), hover)
+    lean = _fly_and_record(m, copter, lean_s, _roll(roll_deg), hover / math.cos(math.radians(roll_deg)))
+    return [msg for msg in lean if msg.get_type() == kind]
 
 
 def _fast_streams(m, copter) -> None:
@@ -272,10 +271,7 @@ def test_arducopter_shapes_attitude_targets_with_rate_ff_enab(copter):
     _fast_streams(m, copter)
     peak = {}
     for ff in (0.0, 1.0):
-        _set_param(m, copter, "ATC_RATE_FF_ENAB", ff)
-        _fly_and_record(m, copter, 1.5, _roll(0.0), hover)
-        seen = [a for a in _fly_and_record(m, copter, 1.0, _roll(20.0), hover / math.cos(math.radians(20)))
-                if a.get_type() == "ATTITUDE"]
+        seen = _lean_with(m, copter, "ATC_RATE_FF_ENAB", ff, 1.5, 20.0, 1.0, hover, "ATTITUDE")
         peak[ff] = max(math.degrees(a.rollspeed) for a in seen)
     assert 35.0 < peak[1.0] < 70.0 and peak[1.0] < 0.8 * peak[0.0], peak
 
@@ -292,9 +288,6 @@ def test_arducopter_boosts_throttle_by_the_tilt_with_angle_boost(copter):
     _fast_streams(m, copter)
     climb = {}
     for boost in (0.0, 1.0):
-        _set_param(m, copter, "ATC_ANGLE_BOOST", boost)
-        _fly_and_record(m, copter, 2.0, _roll(0.0), hover)
-        seen = [p for p in _fly_and_record(m, copter, 1.5, _roll(30.0), hover / math.cos(math.radians(30)))
-                if p.get_type() == "LOCAL_POSITION_NED"]
+        seen = _lean_with(m, copter, "ATC_ANGLE_BOOST", boost, 2.0, 30.0, 1.5, hover, "LOCAL_POSITION_NED")
         climb[boost] = seen[0].z - seen[-1].z
     assert climb[1.0] - climb[0.0] > 0.3, climb
