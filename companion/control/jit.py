@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 __all__ = ["jitable", "float_form", "kernel", "register_with_numba", "numba_available", "cache_dir", "SOURCES",
-           "depends_on", "PARALLEL_LAYER"]
+           "depends_on", "PARALLEL_LAYER", "KERNEL_OPT"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -126,6 +126,13 @@ on this machine (docs/benchmarks.md); it is not safe for two Python threads laun
 kernels at once, so callers serialise their launches (``sitl.lab.simulation`` holds a lock)."""
 
 
+KERNEL_OPT = "1"
+"""LLVM's optimisation level for the kernels (unless ``NUMBA_OPT`` says otherwise). Measured on the
+E3 kernel (docs/benchmarks.md, "cold compile"): level 1 compiles in 26 s where numba's default 3
+takes 33 s, and the compiled vehicle runs as fast (within the host's noise, one vehicle and
+batches); level 0 is no faster to compile and runs 7x slower."""
+
+
 def kernel(fn: F | None = None, *, parallel: bool = False) -> Any:
     """Compile ``fn`` with numba (``nopython``, ``cache=True``), or return it as it is when numba
     is not installed (the simulator then runs interpreted, slowly but with the same numbers)."""
@@ -133,8 +140,10 @@ def kernel(fn: F | None = None, *, parallel: bool = False) -> Any:
     def build(f: F) -> Any:
         if not numba_available():
             return f
+        os.environ.setdefault("NUMBA_OPT", KERNEL_OPT)
         import numba
 
+        numba.core.config.reload_config()  # reads NUMBA_OPT again if numba was imported before
         register_with_numba()
         # numba reads the folder when a cached kernel is created (NUMBA_CACHE_DIR is the base)
         numba.config.CACHE_DIR = str(cache_dir())  # type: ignore[attr-defined]
