@@ -24,10 +24,13 @@ _LISTENING = re.compile(r"listening on udp://([\d.]+):(\d+)")
 
 class VehicleProcess:
     def __init__(self, *args: str, speedup: float = 4.0, env: dict[str, str] | None = None,
-                 cwd: Path | None = None, own_session: bool = True, port: int = 0) -> None:
-        """``port`` 0 lets the system pick one (read back from the banner)."""
+                 cwd: Path | None = None, own_session: bool = True, port: int = 0,
+                 interpreter_args: tuple[str, ...] = ()) -> None:
+        """``port`` 0 lets the system pick one (read back from the banner); ``interpreter_args`` go
+        before ``-m sitl`` (a benchmark runs the vehicle under ``-m cProfile -o FILE``)."""
         self.speedup = speedup
-        cmd = [sys.executable, "-m", "sitl", "--listen", f"127.0.0.1:{port}", "--speedup", f"{speedup:g}", *args]
+        cmd = [sys.executable, *interpreter_args, "-m", "sitl", "--listen", f"127.0.0.1:{port}",
+               "--speedup", f"{speedup:g}", *args]
         child_env = {k: v for k, v in os.environ.items() if k != "MAVLINK_SIGNING_KEY"} if env is None else env
         child_env = {**child_env, "PYTHONUNBUFFERED": "1"}
         self.proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
