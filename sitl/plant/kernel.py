@@ -49,7 +49,8 @@ from . import rng
 from .body import Forces, PlantConst, RigidBody, plant_const, plant_step
 from .codec import codec
 from .onboard import command_level, estimator_correct
-from .sensors import MocapSample
+from .sensors import MocapSample, differentiated, imu_reading, tracked_pose
+from .wind import dryden_advance, dryden_gust, wind_ned
 
 try:
     from numba import prange
@@ -130,17 +131,12 @@ def sensor_const(params: object, seed: int, dt_s: float) -> SensorConst:
 
 @jitable
 def imu_sample(c: SensorConst, body: RigidBody, forces: Forces, k: int) -> tuple[Vec3, Vec3]:
-    """Gyro [rad/s] and accelerometer [m/s^2] readings at step ``k``: truth + bias + white noise."""
+    """Gyro [rad/s] and accelerometer [m/s^2] readings at step ``k`` (:func:`imu_reading`)."""
     gk, ak = c.gyro_keys, c.accel_keys
-    gn, an = c.gyro_noise_rad_s, c.accel_noise_m_s2
-    w, gb = body.omega_rad_s, c.gyro_bias_rad_s
-    f, ab = forces.specific_force_body_m_s2, c.accel_bias_m_s2
-    return (
-        (w[0] + gb[0] + gn * rng.normal(gk[0], k), w[1] + gb[1] + gn * rng.normal(gk[1], k),
-         w[2] + gb[2] + gn * rng.normal(gk[2], k)),
-        (f[0] + ab[0] + an * rng.normal(ak[0], k), f[1] + ab[1] + an * rng.normal(ak[1], k),
-         f[2] + ab[2] + an * rng.normal(ak[2], k)),
-    )
+    return imu_reading(body.omega_rad_s, c.gyro_bias_rad_s, c.gyro_noise_rad_s,
+                       (rng.normal(gk[0], k), rng.normal(gk[1], k), rng.normal(gk[2], k)),
+                       forces.specific_force_body_m_s2, c.accel_bias_m_s2, c.accel_noise_m_s2,
+                       (rng.normal(ak[0], k), rng.normal(ak[1], k), rng.normal(ak[2], k)))
 
 
 @jitable
@@ -157,12 +153,10 @@ def mocap_step(c: SensorConst, st: MocapState, t_s: float, body: RigidBody) -> t
     if t_s + 1e-9 < next_s and (n == 0 or pending[PENDING - n].due_s > t_s + 1e-9):
         return st, False  # 15 of 16 steps: nothing to take or deliver, the state is not rebuilt
     if t_s + 1e-9 >= next_s:
-        k, pn, an = c.mocap_keys, c.mocap_pos_noise_m, c.mocap_att_noise_rad
-        p = body.pos_ned_m
-        pos = (p[0] + pn * rng.normal(k[0], taken), p[1] + pn * rng.normal(k[1], taken),
-               p[2] + pn * rng.normal(k[2], taken))
-        q = quat.mul(body.q, quat.exp((an * rng.normal(k[3], taken), an * rng.normal(k[4], taken),
-                                       an * rng.normal(k[5], taken))))
+        k = c.mocap_keys
+        pos, q = tracked_pose(body.pos_ned_m, body.q, c.mocap_pos_noise_m, c.mocap_att_noise_rad,
+                              (rng.normal(k[0], taken), rng.normal(k[1], taken), rng.normal(k[2], taken)),
+                              (rng.normal(k[3], taken), rng.normal(k[4], taken), rng.normal(k[5], taken)))
         pending = pending[1:] + (Pending(t_s + c.mocap_delay_s, t_s, pos, q),)
         n = min(n + 1, PENDING)
         taken += 1
@@ -181,18 +175,10 @@ def mocap_step(c: SensorConst, st: MocapState, t_s: float, body: RigidBody) -> t
 @jitable
 def _deliver(c: SensorConst, latest: MocapSample, has_prev: bool, prev: Vec3, taken_s: float, pos: Vec3,
              q: Quat) -> tuple[MocapSample, bool, Vec3]:
-    """Differentiate with the samples' own timestamps (they fall on the plant's time grid)."""
+    """The delivered sample differentiated against the one before (:func:`differentiated`)."""
     if not has_prev:
         return MocapSample(taken_s, pos, ZERO3, ZERO3, q), True, pos
-    inv = 1.0 / (taken_s - latest.time_s)
-    av, aa = c.velocity_alpha, c.accel_alpha
-    v0 = latest.vel_ned_m_s
-    vel = (v0[0] + av * ((pos[0] - prev[0]) * inv - v0[0]), v0[1] + av * ((pos[1] - prev[1]) * inv - v0[1]),
-           v0[2] + av * ((pos[2] - prev[2]) * inv - v0[2]))
-    a0 = latest.accel_ned_m_s2
-    acc = (a0[0] + aa * ((vel[0] - v0[0]) * inv - a0[0]), a0[1] + aa * ((vel[1] - v0[1]) * inv - a0[1]),
-           a0[2] + aa * ((vel[2] - v0[2]) * inv - a0[2]))
-    return MocapSample(taken_s, pos, vel, acc, q), True, pos
+    return differentiated(latest, prev, taken_s, pos, q, c.velocity_alpha, c.accel_alpha), True, pos
 
 
 # --- wind: mean + Dryden turbulence ---------------------------------------------------------------------
@@ -269,19 +255,10 @@ def wind_step(c: WindConst, st: WindState, k: int) -> tuple[WindState, Vec3]:
     if not c.enabled:
         return st, m
     keys = c.keys
-    n0, n1, n2 = rng.normal(keys[0], k), rng.normal(keys[1], k), rng.normal(keys[2], k)
-    a, b = c.u
-    xu = a * st.xu + b * n0
-    p11, p21, p22, g1, g2 = c.v
-    x1, x2 = st.xv
-    xv = (p11 * x1 + g1 * n1, p21 * x1 + p22 * x2 + g2 * n1)
-    p11, p21, p22, g1, g2 = c.w
-    x1, x2 = st.xw
-    xw = (p11 * x1 + g1 * n2, p21 * x1 + p22 * x2 + g2 * n2)
-    s, cv, cw = c.sigma, c.cv, c.cw
-    u, v, w = s[0] * xu, s[1] * (cv[0] * xv[0] + cv[1] * xv[1]), s[2] * (cw[0] * xw[0] + cw[1] * xw[1])
-    co, si = c.cos_heading, c.sin_heading
-    return WindState(xu, xv, xw), (m[0] + co * u - si * v, m[1] + si * u + co * v, m[2] + w)
+    xu, xv, xw = dryden_advance(c.u, c.v, c.w, st.xu, st.xv, st.xw,
+                                rng.normal(keys[0], k), rng.normal(keys[1], k), rng.normal(keys[2], k))
+    gust = dryden_gust(c.sigma, c.cv, c.cw, xu, xv, xw)
+    return WindState(xu, xv, xw), wind_ned(m, c.cos_heading, c.sin_heading, gust)
 
 
 # --- external forces and torques ----------------------------------------------------------------------

@@ -18,13 +18,17 @@ from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 from companion.control import quaternion as quat
+from companion.control.jit import depends_on, jitable
 from companion.control.quaternion import Quat
-from companion.control.vector import ZERO3, Vec3, lowpass_alpha
+from companion.control.vector import ZERO3, Real, Vec3, lowpass_alpha
 
 from .dynamics import RigidBodyState, Wrench
 from .noise import GaussianStream
 
-__all__ = ["SensorParams", "ImuSample", "Imu", "MocapSample", "Mocap"]
+__all__ = ["SensorParams", "ImuSample", "Imu", "MocapSample", "Mocap", "imu_reading", "tracked_pose",
+           "differentiated"]
+
+depends_on(__file__)  # the compiled kernel (kernel.py) calls the three laws below
 
 
 @dataclass(frozen=True)
@@ -49,6 +53,27 @@ class ImuSample(NamedTuple):
     specific_force_body_m_s2: Vec3
 
 
+@jitable
+def imu_reading(omega_rad_s: Vec3, gyro_bias_rad_s: Vec3, gyro_noise_rad_s: Real, n_gyro: Vec3,
+                specific_force_m_s2: Vec3, accel_bias_m_s2: Vec3, accel_noise_m_s2: Real,
+                n_accel: Vec3) -> tuple[Vec3, Vec3]:
+    """Gyro [rad/s] and accelerometer [m/s^2] readings: truth + bias + noise (``n_*``: unit normals)."""
+    w, gb, gn = omega_rad_s, gyro_bias_rad_s, gyro_noise_rad_s
+    f, ab, an = specific_force_m_s2, accel_bias_m_s2, accel_noise_m_s2
+    return ((w[0] + gb[0] + gn * n_gyro[0], w[1] + gb[1] + gn * n_gyro[1], w[2] + gb[2] + gn * n_gyro[2]),
+            (f[0] + ab[0] + an * n_accel[0], f[1] + ab[1] + an * n_accel[1], f[2] + ab[2] + an * n_accel[2]))
+
+
+@jitable
+def tracked_pose(pos_ned_m: Vec3, q: Quat, pos_noise_m: Real, att_noise_rad: Real, n_pos: Vec3,
+                 n_att: Vec3) -> tuple[Vec3, Quat]:
+    """What the tracking system measures: position [m] plus noise, attitude turned by a small
+    random rotation (``n_*``: unit normals)."""
+    pn, an = pos_noise_m, att_noise_rad
+    pos = (pos_ned_m[0] + pn * n_pos[0], pos_ned_m[1] + pn * n_pos[1], pos_ned_m[2] + pn * n_pos[2])
+    return pos, quat.mul(q, quat.exp((an * n_att[0], an * n_att[1], an * n_att[2])))
+
+
 class Imu:
     def __init__(self, params: SensorParams, seeds: int | Sequence[int]) -> None:
         self.params = params
@@ -60,13 +85,11 @@ class Imu:
 
     def sample(self, state: RigidBodyState, wrench: Wrench) -> ImuSample:
         n = self._noise.next()
-        gn, an = self.params.gyro_noise_rad_s, self.params.accel_noise_m_s2
-        w, gb = state.omega_rad_s, self.gyro_bias
-        f, ab = wrench.specific_force_body_m_s2, self.accel_bias
-        return ImuSample(
-            (w[0] + gb[0] + gn * n[0], w[1] + gb[1] + gn * n[1], w[2] + gb[2] + gn * n[2]),
-            (f[0] + ab[0] + an * n[3], f[1] + ab[1] + an * n[4], f[2] + ab[2] + an * n[5]),
-        )
+        p = self.params
+        gyro, accel = imu_reading(state.omega_rad_s, self.gyro_bias, p.gyro_noise_rad_s, (n[0], n[1], n[2]),
+                                  wrench.specific_force_body_m_s2, self.accel_bias, p.accel_noise_m_s2,
+                                  (n[3], n[4], n[5]))
+        return ImuSample(gyro, accel)
 
 
 class MocapSample(NamedTuple):
@@ -98,10 +121,8 @@ class Mocap:
         p = self.params
         if t_s + 1e-9 >= self._next_t:
             n = self._noise.next()
-            pn, an = p.mocap_pos_noise_m, p.mocap_att_noise_rad
-            pos = state.pos_ned_m
-            pos = (pos[0] + pn * n[0], pos[1] + pn * n[1], pos[2] + pn * n[2])
-            q = quat.mul(state.q, quat.exp((an * n[3], an * n[4], an * n[5])))
+            pos, q = tracked_pose(state.pos_ned_m, state.q, p.mocap_pos_noise_m, p.mocap_att_noise_rad,
+                                  (n[0], n[1], n[2]), (n[3], n[4], n[5]))
             self._pending.append((t_s + p.mocap_delay_s, t_s, pos, q))
             self._next_t += self.period_s
         fresh = None
@@ -117,17 +138,26 @@ class Mocap:
         self._pending.clear()
 
     def _deliver(self, taken_s: float, pos: Vec3, q: Quat) -> MocapSample:
-        """Differentiate with the samples' own timestamps (they fall on the plant's time grid)."""
         prev = self._pos_prev
         self._pos_prev = pos
         if prev is None:
             self.latest = MocapSample(taken_s, pos, ZERO3, ZERO3, q)
-            return self.latest
-        inv = 1.0 / (taken_s - self.latest.time_s)
-        av, aa = self._av, self._aa
-        v0 = self.latest.vel_ned_m_s
-        vel = tuple(v0[i] + av * ((pos[i] - prev[i]) * inv - v0[i]) for i in range(3))
-        a0 = self.latest.accel_ned_m_s2
-        acc = tuple(a0[i] + aa * ((vel[i] - v0[i]) * inv - a0[i]) for i in range(3))
-        self.latest = MocapSample(taken_s, pos, vel, acc, q)  # type: ignore[arg-type]
+        else:
+            self.latest = differentiated(self.latest, prev, taken_s, pos, q, self._av, self._aa)
         return self.latest
+
+
+@jitable
+def differentiated(latest: MocapSample, pos_prev: Vec3, taken_s: float, pos: Vec3, q: Quat,
+                   velocity_alpha: float, accel_alpha: float) -> MocapSample:
+    """The next tracking sample with its velocity [m/s] and acceleration [m/s^2]: backward
+    differences over the samples' own timestamps (on the plant's time grid), each low-passed."""
+    inv = 1.0 / (taken_s - latest.time_s)
+    av, aa, prev = velocity_alpha, accel_alpha, pos_prev
+    v0 = latest.vel_ned_m_s
+    vel = (v0[0] + av * ((pos[0] - prev[0]) * inv - v0[0]), v0[1] + av * ((pos[1] - prev[1]) * inv - v0[1]),
+           v0[2] + av * ((pos[2] - prev[2]) * inv - v0[2]))
+    a0 = latest.accel_ned_m_s2
+    acc = (a0[0] + aa * ((vel[0] - v0[0]) * inv - a0[0]), a0[1] + aa * ((vel[1] - v0[1]) * inv - a0[1]),
+           a0[2] + aa * ((vel[2] - v0[2]) * inv - a0[2]))
+    return MocapSample(taken_s, pos, vel, acc, q)

@@ -27,6 +27,7 @@ from typing import Sequence
 
 import numpy as np
 
+from companion.control.jit import depends_on, jitable
 from companion.control.vector import ZERO3, Real, Vec3
 
 from .noise import GaussianStream
@@ -37,7 +38,12 @@ __all__ = [
     "dryden_low_altitude",
     "dryden_psd",
     "Wind",
+    "dryden_advance",
+    "dryden_gust",
+    "wind_ned",
 ]
+
+depends_on(__file__)  # the compiled kernel (kernel.py) calls the three laws below
 
 FT = 0.3048
 
@@ -108,6 +114,39 @@ def _second_order(dt: float, tc: float) -> tuple[_Coeffs, tuple[float, float], n
     return coeffs, (float(c[0] * k), float(c[1] * k)), np.linalg.cholesky(p)
 
 
+_Filter2 = tuple[Real, Real]
+
+
+@jitable
+def dryden_advance(u: tuple[float, float], v: _Coeffs, w: _Coeffs, xu: Real, xv: _Filter2, xw: _Filter2,
+                   n_u: Real, n_v: Real, n_w: Real) -> tuple[Real, _Filter2, _Filter2]:
+    """One step of the three forming filters (coefficients of :func:`_first_order` and
+    :func:`_second_order`) driven by unit white noise ``n_*``."""
+    a, b = u
+    xu = a * xu + b * n_u
+    p11, p21, p22, g1, g2 = v
+    x1, x2 = xv
+    xv = (p11 * x1 + g1 * n_v, p21 * x1 + p22 * x2 + g2 * n_v)
+    p11, p21, p22, g1, g2 = w
+    x1, x2 = xw
+    xw = (p11 * x1 + g1 * n_w, p21 * x1 + p22 * x2 + g2 * n_w)
+    return xu, xv, xw
+
+
+@jitable
+def dryden_gust(sigma: Vec3, cv: tuple[float, float], cw: tuple[float, float], xu: Real, xv: _Filter2,
+                xw: _Filter2) -> Vec3:
+    """Gust (u, v, w) [m/s] in the wind axes from the filters' states."""
+    return (sigma[0] * xu, sigma[1] * (cv[0] * xv[0] + cv[1] * xv[1]), sigma[2] * (cw[0] * xw[0] + cw[1] * xw[1]))
+
+
+@jitable
+def wind_ned(mean_ned_m_s: Vec3, cos_heading: float, sin_heading: float, gust: Vec3) -> Vec3:
+    """The NED wind [m/s]: the mean plus the gust turned from the wind axes (u along the mean)."""
+    m, c, s = mean_ned_m_s, cos_heading, sin_heading
+    return (m[0] + c * gust[0] - s * gust[1], m[1] + s * gust[0] + c * gust[1], m[2] + gust[2])
+
+
 class Wind:
     """Mean wind plus turbulence, stepped with the plant; :meth:`step` returns the NED wind."""
 
@@ -144,22 +183,11 @@ class Wind:
             self._xv = (float(self._xv[0]), float(self._xv[1]))
             self._xw = (float(self._xw[0]), float(self._xw[1]))
 
-    def _advance(self) -> tuple[Real, Real, Real]:
+    def _advance(self) -> Vec3:
         n = self._noise.next()
-        a, b = self._u
-        self._xu = a * self._xu + b * n[0]
-        p11, p21, p22, g1, g2 = self._v
-        x1, x2 = self._xv
-        self._xv = (p11 * x1 + g1 * n[1], p21 * x1 + p22 * x2 + g2 * n[1])
-        p11, p21, p22, g1, g2 = self._w
-        x1, x2 = self._xw
-        self._xw = (p11 * x1 + g1 * n[2], p21 * x1 + p22 * x2 + g2 * n[2])
-        s, cv, cw = self.sigma, self._cv, self._cw
-        return (
-            s[0] * self._xu,
-            s[1] * (cv[0] * self._xv[0] + cv[1] * self._xv[1]),
-            s[2] * (cw[0] * self._xw[0] + cw[1] * self._xw[1]),
-        )
+        self._xu, self._xv, self._xw = dryden_advance(self._u, self._v, self._w, self._xu, self._xv, self._xw,
+                                                      n[0], n[1], n[2])
+        return dryden_gust(self.sigma, self._cv, self._cw, self._xu, self._xv, self._xw)
 
     def turbulence_step(self) -> Vec3:
         """Gust (u, v, w) [m/s] in the wind axes; zero when turbulence is off."""
@@ -168,9 +196,6 @@ class Wind:
         return self._advance()
 
     def step(self) -> Vec3:
-        m = self.mean
         if not self.enabled:
-            return m
-        u, v, w = self._advance()
-        c, s = self._cos, self._sin
-        return (m[0] + c * u - s * v, m[1] + s * u + c * v, m[2] + w)
+            return self.mean
+        return wind_ned(self.mean, self._cos, self._sin, self._advance())
