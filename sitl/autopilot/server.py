@@ -123,10 +123,11 @@ class ServerConfig:
 
 
 UNSIGNED_ALLOWED = frozenset({"HEARTBEAT", "RADIO_STATUS"})
+"""with signing on, what may arrive unsigned (it changes nothing, and teaches no peer address)"""
 FORWARDED = frozenset({"NAMED_VALUE_FLOAT", "NAMED_VALUE_INT", "DEBUG_VECT", "DEBUG"})
 """messages for the ground station, routed on as an autopilot does"""
 FORWARD_PER_S = 100
-"""with signing on, what may arrive unsigned (it changes nothing, and teaches no peer address)"""
+"""routed messages one sender may have forwarded per vehicle second (:meth:`MavlinkServer._forward`)"""
 
 
 class MavlinkServer:
@@ -408,10 +409,13 @@ class MavlinkServer:
 
     def _forward(self, frame: bytes, addr: tuple[str, int]) -> None:
         """A companion's state for the ground stations (as an autopilot routes it): to every other
-        peer, at most FORWARD_PER_S a second from one sender (a flood is dropped and counted)."""
-        now = time.monotonic()
+        peer, at most FORWARD_PER_S a *vehicle* second from one sender (a flood is dropped and
+        counted). The budget follows the simulated clock, as the sender's rate does: a companion's
+        40 messages a vehicle second are 320 a wall second at 8x, and a wall-second budget cut them
+        to a third (what a ground station saw of a flown force estimate on an idle host)."""
+        now = self.ap.t
         window, count = self._forwarded.get(addr, (now, 0))
-        if now - window >= 1.0:
+        if not 0.0 <= now - window < 1.0:
             window, count = now, 0
         if count >= FORWARD_PER_S:
             self.stats["forward_dropped"] += 1

@@ -205,3 +205,63 @@ def test_an_attacker_neither_stops_nor_slows_another_clients_telemetry_nor_the_w
     assert f"127.0.0.1:{controller_port}" in [p["addr"] for p in report.get("peers", []) if p["controller"]], report
     # the world's speed, in CPU: what the vehicle needs per simulated second under attack fits a core
     assert figures["cpu_per_sim_s_attack"] * SPEEDUP < 0.8, str(figures)
+
+
+def test_a_companions_messages_reach_the_ground_station_whole_at_any_speed_up_and_a_flood_is_cut(sitl, client):
+    """What a companion sends for the ground station (DEBUG_VECT, NAMED_VALUE_FLOAT: 40 a vehicle
+    second) is routed whole at 8x, and a flood from one sender is cut to FORWARD_PER_S (100) a
+    vehicle second. The budget counted wall seconds before: at 8x it passed about a third of the
+    companion's 320 a wall second (the fresh-clone CI failure of
+    test_the_ground_station_sees_the_force_estimate_live on an idle host: 33 force estimates of ~100).
+    The sender paces itself by the vehicle's own stamps, so a loaded host changes nothing here."""
+    from sitl.autopilot.server import FORWARD_PER_S
+
+    s = sitl(speedup=8.0)
+    gcs = client(s.url, source_system=200)
+    gcs.wait("HEARTBEAT")
+    gcs.m.mav.request_data_stream_send(1, 1, mavlink.MAV_DATA_STREAM_ALL, 0, 0)  # only routed messages now
+    got: list[int] = []
+    done = threading.Event()
+
+    def read() -> None:
+        while not done.is_set():
+            m = gcs.recv(0.05)
+            if m is not None and m.get_type() == "DEBUG_VECT" and m.name == "F_est":
+                got.append(m.time_usec)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    sender = client(s.url, source_system=190)
+
+    def send_paced(per_vehicle_s: float, vehicle_s: float, first_index: int) -> int:
+        """DEBUG_VECTs numbered from first_index, per_vehicle_s of them per vehicle second."""
+        def now_s() -> float:  # the vehicle's time from its newest stamp (a backlog read fast is no clock)
+            newest = sender.wait("ATTITUDE_QUATERNION")
+            while (m := sender.recv(0)) is not None:
+                if m.get_type() == "ATTITUDE_QUATERNION":
+                    newest = m
+            return newest.time_boot_ms * 1e-3
+
+        t0 = now_s()
+        sent = 0
+        while True:
+            t = now_s() - t0
+            while sent < int(per_vehicle_s * min(t, vehicle_s)):
+                sender.m.mav.debug_vect_send(b"F_est", first_index + sent, 6.0, 0.0, 0.0)
+                sent += 1
+            if t >= vehicle_s:
+                return sent
+
+    paced = send_paced(40.0, 10.0, 0)
+    time.sleep(0.5)
+    whole = sum(1 for i in got if i < paced)
+    flood = send_paced(300.0, 5.0, 100_000)
+    time.sleep(0.5)
+    done.set()
+    reader.join(2.0)
+    routed = sum(1 for i in got if i >= 100_000)
+    report = s.stop()
+    assert paced == 400 and whole >= 0.95 * paced, (whole, paced)  # 0.33 with the wall-second budget
+    # 5 vehicle seconds of flood: at most 6 budget windows (one may straddle each end), most of it dropped
+    assert FORWARD_PER_S * 4 <= routed <= FORWARD_PER_S * 6, (routed, flood, report["stats"])
+    assert report["stats"]["forward_dropped"] >= FORWARD_PER_S * 4, report["stats"]  # counted, not silent
