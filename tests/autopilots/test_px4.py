@@ -25,6 +25,11 @@ SPEED = 4.0
 SPREAD = 1.25
 """the companion's square RMS may be up to 25% above PX4's own in the same boot (run-to-run spread
 of either on the simulated GPS, measured over 6 boots: docs/autopilots.md)"""
+IMPOSSIBLE_M_S2 = 16.0 * 9.80665
+"""an accelerometer reading past 16 g: in the square nothing can produce one. SIH v1.16 has been
+seen to report one (27 g in level flight) and then hold its body still while PX4 rolled it to 59
+degrees (docs/autopilots.md, "A known fault of the simulator"); such a flight measures the
+simulator, not the companion, and is flown again once"""
 OFFBOARD = 6 << 16
 HOLD = (4 << 16) | (3 << 24)
 LAND = (4 << 16) | (6 << 24)
@@ -65,23 +70,45 @@ def _offboard_left_between(m: mavutil.mavfile, timeout: float) -> tuple[int, int
     raise AssertionError(f"PX4 did not leave OFFBOARD within {timeout} s (or was out of it already)")
 
 
+def simulator_faults_s(flight_dir) -> list[float]:  # type: ignore[no-untyped-def]
+    """Vehicle times in the square at which the recorded HIGHRES_IMU read past IMPOSSIBLE_M_S2."""
+    square = segments(flight_dir)["square"]
+    log = mavutil.mavlink_connection(str(flight_dir / "traffic.tlog"))
+    found = []
+    while (m := log.recv_match(type="HIGHRES_IMU")) is not None:
+        t = m.time_usec * 1e-6
+        if square["t_start"] <= t <= square["t_end"] and max(abs(m.xacc), abs(m.yacc), abs(m.zacc)) > IMPOSSIBLE_M_S2:
+            found.append(round(t, 3))
+    log.close()
+    return found
+
+
 @pytest.mark.parametrize("backend", ["pymavlink", "mavsdk"])
 def test_square_twice_in_one_boot_within_px4s_own_figure(px4_build, companion, backend, record_property):
     """PX4 flies the square itself, then the companion flies it twice in the same boot: the second
-    arming used to be refused (PX4 restores OFFBOARD after a disarm)."""
-    with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
-        own = companion("missions/square_gps.toml", px4.url, "--controller", "autopilot")
-        code, out = own.finish(timeout=240)
-        assert code == 0, out
-        figures = {"px4": segments(own.flight_dir())["square"]["rms_error_m"]}
-        for k in (1, 2):
-            c = companion("missions/square_gps.toml", px4.url, "--backend", backend)
+    arming used to be refused (PX4 restores OFFBOARD after a disarm). A flight in which the
+    simulator reported an impossible acceleration is void and flown again, once."""
+    voided: list = []
+
+    def fly(label: str, *args: str) -> dict:
+        for _ in range(2):
+            c = companion("missions/square_gps.toml", px4.url, *args)
             code, out = c.finish(timeout=240)
-            assert code == 0, f"flight {k}: {out}"
-            seg = segments(c.flight_dir())
+            assert code == 0, f"{label}: {out}"
+            faults = simulator_faults_s(c.flight_dir())
+            if not faults:
+                return segments(c.flight_dir())
+            voided.append((label, faults[:3]))
+        raise AssertionError(f"{label}: the simulator reported an impossible acceleration twice: {voided}")
+
+    with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
+        figures = {"px4": fly("px4", "--controller", "autopilot")["square"]["rms_error_m"]}
+        for k in (1, 2):
+            seg = fly(f"ism_do_{k}", "--backend", backend)
             assert seg["_summary"]["output"] == "attitude" and seg["_summary"]["type_mask"] == 3
             figures[f"ism_do_{k}"] = seg["square"]["rms_error_m"]
     record_property("square_rms_m", figures)
+    record_property("void_flights", voided)
     for k in (1, 2):
         assert figures[f"ism_do_{k}"] <= SPREAD * figures["px4"], figures
 
