@@ -637,6 +637,11 @@ class Autopilot:
                                                        - self.accel_bias_z_m_s2)
         if not self.armed or self.landed:
             return
+        if v.imu_failed and v.position_age_s > self.POSITION_TIMEOUT_S:
+            # no attitude source is left (the gyro-less loop flies on tracking, the blind descent on
+            # the IMU): nothing can keep the vehicle upright, so the flight ends where it is
+            self.terminate(f"No attitude: IMU failed ({v.imu_failed}) and tracking lost")
+            return
         if v.imu_failed and self.failsafe != "IMU failed" and self.failsafe != "position lost":
             self._say(Severity.CRITICAL, f"IMU failed ({v.imu_failed}): landing")
             self._enter(Mode.LAND)

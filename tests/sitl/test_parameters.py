@@ -276,3 +276,19 @@ def test_the_documented_table_is_the_table() -> None:
     doc = (ROOT / "docs" / "sitl.md").read_text()
     assert markdown_table(make()) in doc
     assert markdown_table(make(flavour="ardupilot"), ARDUPILOT_ROWS) in doc
+
+
+def test_a_failed_imu_while_tracking_is_lost_ends_the_flight_before_it_flips() -> None:
+    """Found by the property test above in CI: tracking dropped (position lost, a blind descent on
+    the IMU), then the IMU frozen. No attitude source is left, and before, the vehicle flipped
+    (110 deg) with nothing terminated. Now the flight ends where it is within the IMU check's
+    50 ms, still upright, and says why."""
+    f = Flight()
+    f.set("SIM_MOCAP_DROP", 3600.0)
+    f.fly(1.5)
+    f.set("SIM_IMU_FREEZE", 3600.0)
+    f.fly(1.5)
+    f.fly(3.0)
+    f.check_alive()
+    assert f.ap.terminated is not None and f.ap.terminated.startswith("No attitude"), list(f.ap.events)
+    assert not f.ap.armed and f.max_tilt_deg < 30.0, f.max_tilt_deg
