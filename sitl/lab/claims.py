@@ -76,8 +76,9 @@ def _median(result: ExperimentResult, field: str, segment: str, position: str, a
 
 def e1_pd_do_settles_faster_than_pid(r: ExperimentResult) -> list[str]:
     """Settling into 5 cm after the 2 N onset. PID's slowest pole (-0.23 rad/s, 4.3 s) cannot
-    remove a 1.3 m error within the 7 s the force acts; the force DO (Gamma_f = 5 rad/s) behind a
-    ~0.1 s measurement chain hands PD a cancelled disturbance within ~3 s: at most 4 s, and PID
+    remove a 1.3 m error within the 7 s the force acts; the force DO (Gamma_f = 5 rad/s) hands PD
+    a cancelled disturbance within ~2.7 s (2.66 s on the ideal point mass; ~3 s behind a motion-
+    capture chain): at most 4 s, and PID
     either never settles or 2 s later."""
     j = _Judge()
     pd = _per_seed(r, "settling_time_s", "force on", "pd_do")
@@ -103,8 +104,9 @@ def e1_ism_do_has_the_smallest_peak(r: ExperimentResult) -> list[str]:
 
 def e1_ism_do_undershoots_after_release(r: ExperimentResult) -> list[str]:
     """The integral of the sliding variable, built while the force acted, carries the vehicle past
-    its rest point on the way back: on the ideal point mass by 38 % of the release excursion; the
-    slower return through the measurement chain leaves more than 15 %. PD+DO, without the
+    its rest point on the way back: on the ideal point mass by 38 % of the release excursion (37-39 %
+    in E1's flights); a slower return through a motion-capture chain leaves less, so the bound is
+    15 %. PD+DO, without the
     integral, does not swing past (< 5 %: a critically damped loop under a one-signed pulse)."""
     j = _Judge()
     ism_sw = _per_seed(r, "swing_past_m", "released", "ism_do")

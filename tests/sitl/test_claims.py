@@ -130,6 +130,29 @@ def test_e1_ism_do_undershoots_after_release(e1, e1_without_sliding):
     fails("E1 ISM+DO undershoots after release", e1_without_sliding)
 
 
+def e1_fig6_figures(result):
+    """Issue 14's E1 targets on Fig. 6's parameters, as far as the law reaches them: ISM+DO peaks
+    within 0.115 m and PD+DO within 0.195 m in every seed, and ISM+DO is back within 5 cm in at most
+    1.20 s: the law's own 1.15 s on an ideal point mass (tests/control/test_position.py) plus
+    50 ms; the target's 1.05 s is faster than the law (docs/experiments.md, E1)."""
+    peak = result.values("peak_error_m", "force on")
+    settle = result.values("settling_time_s", "force on")
+    return peak[("ism_do", "ism_do")], settle[("ism_do", "ism_do")], peak[("pd_do", "ism_do")]
+
+
+def test_e1_lands_on_fig6_on_the_papers_simulated_sensing(e1):
+    """E1 (a simulation in the paper) measures the acceleration as the paper's simulation does;
+    the twin differentiates motion capture and matches (30) to it, as E3-E5's hardware does, and
+    is 4-9 cm off Fig. 6."""
+    peaks, settles, pd_peaks = e1_fig6_figures(e1)
+    assert max(peaks) <= 0.115 and max(settles) <= 1.20 and max(pd_peaks) <= 0.195, (peaks, settles, pd_peaks)
+    mocap = {"position.observer_uses_imu": False, "position.observer_match_delay_s": 0.035,
+             "position.observer_match_cutoff_hz": 5.0}
+    twin = fly("E1_step_force", [1], mocap, ("pd_do", "ism_do"), duration_s=8.0, segments=("force on",))
+    peaks, settles, pd_peaks = e1_fig6_figures(twin)
+    assert not (max(peaks) <= 0.115 and max(settles) <= 1.20 and max(pd_peaks) <= 0.195)
+
+
 # --- E2 --------------------------------------------------------------------------------------
 
 
