@@ -8,11 +8,13 @@ ISM+DO/ISM+DO, every noise on):
 
 - one vehicle: real-time factor of ``Simulation.run`` (objects) and ``simulate_compiled`` [>= 500x];
 - batches: vehicle-steps per second of the objects' array path and of ``fly_batch`` on both cores
-  (numba's workqueue layer) and on one thread, with CPU seconds [>= 8 M/s on both cores];
+  (a share of the vehicles per Python thread, the GIL released) and on one thread, with CPU
+  seconds [>= 8 M/s on both cores];
 - bytes per vehicle: the resident memory a 4000-vehicle batch (no log) adds to a process that
   has already flown, over 4000, each engine in a fresh process [<= 16 KB];
 - compile: a whole process that flies one vehicle for 10 ms, with an empty kernel cache (cold) and
-  then with the cache it left (cached) [<= 20 s, <= 1 s];
+  then with the cache it left (cached) [<= 20 s, <= 1 s], and where the cold compile goes (numba's
+  compile events, own time per function);
 - the companion's 250 Hz position loop: ``PositionLoop.update`` interpreted against the same
   ``position_loop_step`` compiled and called from Python, per call (median and 99th percentile).
 
@@ -70,18 +72,13 @@ def _batch_rows(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
 
 def compiled_batch(n: int, duration_s: float, threads: int | None = None) -> tuple[float, float]:
     """(wall s, CPU s) of ``n`` vehicles for ``duration_s`` on ``fly_batch``, no log."""
-    import numba
-
     rows, arrays = _batch_rows(n)
     steps = int(duration_s * 1000)
     logs, final = np.empty((n, 0, len(K.LOG_COLUMNS))), np.empty((n, 3))
     K.fly_batch(rows[:1], *arrays, 1, logs[:1], final[:1])
-    numba.set_num_threads(threads or numba.config.NUMBA_NUM_THREADS)
     c0, t0 = time.process_time(), time.perf_counter()
-    K.fly_batch(rows, *arrays, steps, logs, final)
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-    return wall, cpu
+    K.fly_batch(rows, *arrays, steps, logs, final, threads)
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def objects_batch(n: int, duration_s: float) -> tuple[float, float]:
@@ -93,10 +90,8 @@ def objects_batch(n: int, duration_s: float) -> tuple[float, float]:
 
 
 def batches(quick: bool) -> None:
-    import numba
-
-    print(f"\n## batches, {SCENARIO}, vehicle-steps/s (threading layer {numba.config.THREADING_LAYER}, "
-          f"{numba.config.NUMBA_NUM_THREADS} threads)")
+    print(f"\n## batches, {SCENARIO}, vehicle-steps/s (the compiled loop in {K.cores()} Python threads, "
+          f"GIL released)")
     print(f"{'engine':>22} {'vehicles':>8} {'sim s':>6} {'wall s':>7} {'CPU s':>7} {'M steps/s':>10} "
           f"{'M steps/CPU-s':>14}")
     runs = [("objects (arrays)", 1000, 1.0 if not quick else 0.3, None)]
@@ -108,7 +103,6 @@ def batches(quick: bool) -> None:
         steps = n * d * 1000
         print(f"{name:>22} {n:>8} {d:>6.2f} {wall:>7.2f} {cpu:>7.2f} {steps / wall / 1e6:>10.2f} "
               f"{steps / cpu / 1e6:>14.2f}")
-    print(f"(after the run: threading layer {numba.threading_layer()})")
 
 
 MEMORY = """
@@ -185,6 +179,40 @@ def compile_times(repeat: int) -> None:
         print(f"  cached:             {w:.2f} s / {i:.2f} s")
 
 
+COMPILE_EVENTS = """
+import collections, sys, tempfile, os
+os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp()
+sys.path.insert(0, {root!r})
+from numba.core import event
+rec = event.RecordingListener()
+event.register("numba:compile", rec)
+from sitl.lab.simulation import simulate_compiled
+from sitl.plant.scenario import load_scenario
+simulate_compiled(load_scenario("E3_wind"), "ism_do", "ism_do", 1, 0.01)
+own, stack = collections.Counter(), []
+for ts, e in rec.buffer:
+    name = getattr(getattr(e.data.get("dispatcher"), "py_func", None), "__qualname__", "?")
+    if e.is_start:
+        stack.append([name, ts, 0.0])
+    else:
+        n, t0, inner = stack.pop()
+        own[n] += ts - t0 - inner
+        if stack:
+            stack[-1][2] += ts - t0
+print(f"  {{sum(own.values()):.1f}} s in {{len(own)}} functions; the most expensive, own time (callees excluded):")
+for n, d in own.most_common(8):
+    print(f"  {{d:6.2f}} s  {{n}}")
+"""
+
+
+def compile_events() -> None:
+    """Where a cold compile goes: numba's compile events per function, in a fresh process."""
+    print("\n## cold compile by function (numba:compile events, empty cache)")
+    out = subprocess.run([sys.executable, "-c", COMPILE_EVENTS.format(root=str(ROOT))], capture_output=True,
+                         text=True, check=True)
+    print(out.stdout.rstrip())
+
+
 def companion_loop(calls: int) -> None:
     """PositionLoop.update (the companion's call at 250 Hz) against position_loop_step compiled."""
     from companion.control.jit import kernel
@@ -226,7 +254,7 @@ def companion_loop(calls: int) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--only", choices=("one", "batches", "memory", "start", "companion"))
+    ap.add_argument("--only", choices=("one", "batches", "memory", "start", "compile", "companion"))
     args = ap.parse_args()
     print(f"# bench_kernel  {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())}  nproc {os.cpu_count()}  "
           f"load {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
@@ -235,6 +263,7 @@ def main() -> int:
         "batches": lambda: batches(args.quick),
         "memory": memory,
         "start": lambda: compile_times(2 if args.quick else 3),
+        "compile": compile_events,
         "companion": lambda: companion_loop(2000 if args.quick else 20000),
     }
     for name, part in parts.items():

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any, Callable, TypeVar
 
 __all__ = ["jitable", "float_form", "kernel", "register_with_numba", "numba_available", "cache_dir", "SOURCES",
-           "depends_on", "PARALLEL_LAYER", "KERNEL_OPT"]
+           "depends_on", "KERNEL_OPT"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -115,17 +115,6 @@ def _returning(impl: Callable[..., Any]) -> Callable[..., Any]:
     return typer
 
 
-PARALLEL_LAYER = "workqueue"
-"""numba's threading layer for parallel kernels (unless ``NUMBA_THREADING_LAYER`` says otherwise).
-
-numba's default picks OpenMP where it finds it, and GNU OpenMP cannot survive a fork(): a process
-pool (a sweep's ``--jobs``, Dask's workers) started after a parallel kernel has run dies with
-"fork() called from a process already using GNU OpenMP". TBB is fork-safe but another native
-dependency. The workqueue layer ships with numba, is fork-safe and ran batches as fast as OpenMP
-on this machine (docs/benchmarks.md); it is not safe for two Python threads launching parallel
-kernels at once, so callers serialise their launches (``sitl.lab.simulation`` holds a lock)."""
-
-
 KERNEL_OPT = "1"
 """LLVM's optimisation level for the kernels (unless ``NUMBA_OPT`` says otherwise). Measured on the
 E3 kernel (docs/benchmarks.md, "cold compile"): level 1 compiles in 26 s where numba's default 3
@@ -133,9 +122,10 @@ takes 33 s, and the compiled vehicle runs as fast (within the host's noise, one 
 batches); level 0 is no faster to compile and runs 7x slower."""
 
 
-def kernel(fn: F | None = None, *, parallel: bool = False) -> Any:
-    """Compile ``fn`` with numba (``nopython``, ``cache=True``), or return it as it is when numba
-    is not installed (the simulator then runs interpreted, slowly but with the same numbers)."""
+def kernel(fn: F | None = None, *, nogil: bool = False) -> Any:
+    """Compile ``fn`` with numba (``nopython``, ``cache=True``; ``nogil``: it releases the GIL, so
+    Python threads can run it at once), or return it as it is when numba is not installed (the
+    simulator then runs interpreted, slowly but with the same numbers)."""
 
     def build(f: F) -> Any:
         if not numba_available():
@@ -147,8 +137,6 @@ def kernel(fn: F | None = None, *, parallel: bool = False) -> Any:
         register_with_numba()
         # numba reads the folder when a cached kernel is created (NUMBA_CACHE_DIR is the base)
         numba.config.CACHE_DIR = str(cache_dir())  # type: ignore[attr-defined]
-        if parallel and numba.config.THREADING_LAYER == "default":  # type: ignore[attr-defined]
-            numba.config.THREADING_LAYER = PARALLEL_LAYER  # type: ignore[attr-defined]
-        return numba.njit(cache=True, parallel=parallel, error_model="numpy")(f)
+        return numba.njit(cache=True, nogil=nogil, error_model="numpy")(f)
 
     return build(fn) if fn is not None else build

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import gzip
 import os
-import threading
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -200,11 +199,6 @@ def simulate(scenario: Scenario, position: str, attitude: str, seeds: int | Sequ
     return Simulation(scenario, position, attitude, seeds).run(duration_s)
 
 
-_KERNEL_LAUNCH = threading.Lock()
-"""one parallel kernel at a time per process (numba's workqueue layer is not thread-safe, see
-companion.control.jit.PARALLEL_LAYER; a Dask worker may run several tasks in threads)"""
-
-
 def simulate_compiled(scenario: Scenario, position: str, attitude: str, seeds: int | Sequence[int] = 1,
                       duration_s: float | None = None) -> FlightLog:
     """:func:`simulate` on the compiled kernel: every vehicle (per-vehicle gains as in a sweep's
@@ -223,8 +217,7 @@ def simulate_compiled(scenario: Scenario, position: str, attitude: str, seeds: i
     n_log = -(-steps // consts[0].log_div)
     logs = np.empty((len(consts), n_log, len(LOG_COLUMNS)))
     final = np.empty((len(consts), 3))
-    with _KERNEL_LAUNCH:
-        kernel.fly_batch(rows, *arrays, steps, logs, final)
+    kernel.fly_batch(rows, *arrays, steps, logs, final)
     if batch:
         cols = {name: logs[:, :, i].T.copy() for i, name in enumerate(LOG_COLUMNS)}
         cols["t"] = logs[0, :, 0].copy()

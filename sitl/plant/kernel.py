@@ -5,8 +5,9 @@ onboard attitude estimate and attitude loop, the mixer with its quantisation, th
 the IMU and the 60 Hz tracking system -- is :func:`vehicle_step` on a :class:`VehicleState`
 (NamedTuples of floats, immutable), with everything that does not change in flight in a
 :class:`VehicleConst`. :func:`fly_loop` adds the position loop of the control core at its own
-rate and writes the log; :func:`fly_many` runs it for many vehicles in a parallel loop, and
-:data:`fly_batch` is that loop compiled.
+rate and writes the log; :func:`fly_many` runs it for many vehicles, :data:`fly_compiled` is
+that loop compiled (releasing the GIL), and :func:`fly_batch` runs it on every core, a share of
+the vehicles per thread.
 The laws are the control core's own functions (``companion.control``), compiled where a kernel
 calls them; noise is drawn in the loop from counter-based streams (:mod:`.rng`).
 
@@ -16,6 +17,8 @@ Built from a :class:`~sitl.plant.scenario.Scenario` by :func:`vehicle_const` (in
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
@@ -52,11 +55,6 @@ from .onboard import command_level, estimator_correct
 from .sensors import MocapSample, differentiated, imu_reading, tracked_pose
 from .wind import dryden_advance, dryden_gust, wind_ned
 
-try:
-    from numba import prange
-except ImportError:  # the simulator without its extra: the same loops, interpreted
-    prange = range
-
 depends_on(__file__)
 
 __all__ = [
@@ -65,7 +63,8 @@ __all__ = [
     "WindConst", "WindState", "wind_const", "wind_init", "wind_step",
     "profiles_array", "profiles_at",
     "VehicleConst", "VehicleState", "vehicle_const", "vehicle_init", "vehicle_step",
-    "FlightConst", "flight_const", "LOG_COLUMNS", "fly_loop", "FLIGHT_CODEC", "fly_many", "fly_batch",
+    "FlightConst", "flight_const", "LOG_COLUMNS", "fly_loop", "FLIGHT_CODEC", "fly_many", "fly_compiled",
+    "fly_batch", "cores",
 ]
 
 # --- sensors: IMU at the plant rate, 60 Hz tracking with delay -----------------------------------------
@@ -588,10 +587,9 @@ _unpack_flight = FLIGHT_CODEC.unpack
 def fly_many(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
              waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
              final: NDArray[np.float64]) -> None:
-    """:func:`fly_loop` for each vehicle (a row of ``FLIGHT_CODEC``, with the batch's arrays), in
-    parallel over the vehicles (``prange``); ``logs[i]`` gets vehicle i's log, ``final[i]`` its
-    last position."""
-    for i in prange(rows.shape[0]):
+    """:func:`fly_loop` for each vehicle (a row of ``FLIGHT_CODEC``, with the batch's arrays), one
+    after another; ``logs[i]`` gets vehicle i's log, ``final[i]`` its last position."""
+    for i in range(rows.shape[0]):
         st = fly_loop(_unpack_flight(rows[i], forces, torques, waypoints), steps, logs[i])
         p = st.body.pos_ned_m
         final[i, 0] = p[0]
@@ -599,6 +597,35 @@ def fly_many(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: ND
         final[i, 2] = p[2]
 
 
-fly_batch = kernel(fly_many, parallel=True)
-""":func:`fly_many` compiled (cached on disk), its loop over vehicles parallel on every core; or as
-it is without numba. One vehicle flies as a batch of one: a single kernel to compile (~20 s)."""
+fly_compiled = kernel(fly_many, nogil=True)
+""":func:`fly_many` compiled (cached on disk) and free of the GIL while it runs, or as it is without
+numba. One vehicle flies as a batch of one: a single kernel to compile."""
+
+
+def cores() -> int:
+    """Cores this process may run on (its CPU affinity)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def fly_batch(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
+              waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
+              final: NDArray[np.float64], threads: int | None = None) -> None:
+    """:data:`fly_compiled` over the vehicles, split into ``threads`` contiguous shares (default:
+    :func:`cores`), one Python thread each. The compiled loop releases the GIL, so the shares fly
+    at once; each vehicle is computed alone, so the split changes no number. Threads rather than
+    numba's ``parallel=True``: the same speed on this machine, ~4 s less to compile, and no
+    threading layer (numba's OpenMP cannot survive a fork(); docs/benchmarks.md)."""
+    n = rows.shape[0]
+    shares = max(1, min(n, threads or cores()))
+    if shares == 1:
+        fly_compiled(rows, forces, torques, waypoints, steps, logs, final)
+        return
+    edges = [n * k // shares for k in range(shares + 1)]
+    with ThreadPoolExecutor(shares) as pool:
+        done = [pool.submit(fly_compiled, rows[a:b], forces, torques, waypoints, steps, logs[a:b], final[a:b])
+                for a, b in zip(edges[:-1], edges[1:])]
+        for d in done:
+            d.result()
