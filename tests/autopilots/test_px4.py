@@ -9,12 +9,15 @@ deviation), so the square's waypoints count as reached within 0.5 m (missions/sq
 
 from __future__ import annotations
 
+import csv
+import math
 import signal
 import time
 
 import pytest
 from pymavlink import mavutil
 
+from companion.control.params import TrajectoryParams
 from helpers.firmware import Px4Sih
 
 from .conftest import segments
@@ -25,11 +28,14 @@ SPEED = 4.0
 SPREAD = 1.25
 """the companion's square RMS may be up to 25% above PX4's own in the same boot (run-to-run spread
 of either on the simulated GPS, measured over 6 boots: docs/autopilots.md)"""
-IMPOSSIBLE_M_S2 = 16.0 * 9.80665
-"""an accelerometer reading past 16 g: in the square nothing can produce one. SIH v1.16 has been
-seen to report one (27 g in level flight) and then hold its body still while PX4 rolled it to 59
-degrees (docs/autopilots.md, "A known fault of the simulator"); such a flight measures the
-simulator, not the companion, and is flown again once"""
+IMPOSSIBLE_M_S2 = 5.0 * 9.80665
+"""an accelerometer reading past 5 g in the air: SIH's quadrotor has a thrust-to-weight ratio of
+about 2, so its specific force in flight stays near 2 g (touchdowns, 4-6 g, happen in the landing,
+which is not checked). SIH v1.16 has been seen to report single samples of 12.7 g in a hover and
+27 g in level flight, after which PX4's estimator integrated the spike (a 1 m/s velocity jump)
+or the body stayed still while PX4 rolled it to 59 degrees (docs/autopilots.md, "A known fault of
+the simulator"); such a flight measures the simulator, not the companion, and is flown again
+once"""
 OFFBOARD = 6 << 16
 HOLD = (4 << 16) | (3 << 24)
 LAND = (4 << 16) | (6 << 24)
@@ -70,14 +76,16 @@ def _offboard_left_between(m: mavutil.mavfile, timeout: float) -> tuple[int, int
     raise AssertionError(f"PX4 did not leave OFFBOARD within {timeout} s (or was out of it already)")
 
 
-def simulator_faults_s(flight_dir) -> list[float]:  # type: ignore[no-untyped-def]
-    """Vehicle times in the square at which the recorded HIGHRES_IMU read past IMPOSSIBLE_M_S2."""
-    square = segments(flight_dir)["square"]
+def simulator_faults_s(flight_dir, names=("square",)) -> list[float]:  # type: ignore[no-untyped-def]
+    """Vehicle times in the segments ``names`` at which the recorded HIGHRES_IMU read past
+    IMPOSSIBLE_M_S2."""
+    seg = segments(flight_dir)
+    spans = [(seg[n]["t_start"], seg[n]["t_end"]) for n in names]
     log = mavutil.mavlink_connection(str(flight_dir / "traffic.tlog"))
     found = []
     while (m := log.recv_match(type="HIGHRES_IMU")) is not None:
         t = m.time_usec * 1e-6
-        if square["t_start"] <= t <= square["t_end"] and max(abs(m.xacc), abs(m.yacc), abs(m.zacc)) > IMPOSSIBLE_M_S2:
+        if any(a <= t <= b for a, b in spans) and max(abs(m.xacc), abs(m.yacc), abs(m.zacc)) > IMPOSSIBLE_M_S2:
             found.append(round(t, 3))
     log.close()
     return found
@@ -113,20 +121,54 @@ def test_square_twice_in_one_boot_within_px4s_own_figure(px4_build, companion, b
         assert figures[f"ism_do_{k}"] <= SPREAD * figures["px4"], figures
 
 
+WANDER_M_S = 0.4
+"""how fast PX4's own hold usually drifts on SIH's simulated GPS (horizontal speed, 0.2-0.4 m/s;
+0.55 m/s seen once)"""
+
+
+def switch_tilt_bound_deg(flight_dir, switch: dict) -> float:  # type: ignore[no-untyped-def]
+    """The most tilt a bumpless switch asks for: the controller restarts with its reference moving
+    as the vehicle moves, and the critically damped reference filter (bandwidth w, 2 rad/s)
+    stops that velocity v with an acceleration of 2 w v at first: atan(2 w v / g), for the
+    fastest horizontal speed recorded in the switch's segment (at least WANDER_M_S: 9.3 deg),
+    plus 1 deg of attitude tracking."""
+    with open(flight_dir / "timeseries.csv", newline="") as fh:
+        v = max((math.hypot(float(r["vx"]), float(r["vy"])) for r in csv.DictReader(fh)
+                 if switch["t_start"] <= float(r["t"]) <= switch["t_end"]), default=0.0)
+    w = TrajectoryParams().bandwidth_rad_s
+    return math.degrees(math.atan(2.0 * w * max(v, WANDER_M_S) / 9.81)) + 1.0
+
+
 def test_hold_and_a_bumpless_switch_to_offboard(px4_build, companion):
     """20 s of offboard hold: completes, within 0.5 m RMS of the point (PX4's own hold wanders by
     0.2-0.4 m standard deviation on the simulated GPS). The switch to OFFBOARD is bumpless: the
-    controller restarts from the vehicle's state right before it, so the tilt stays within 8 deg
-    (what the GPS's wander asks for) where it used to reach 22 deg after learning for 1.2 s what
-    PX4's own HOLD was doing."""
+    controller restarts from the vehicle's state right before it, so the tilt stays within what
+    stopping the hold's wander asks for (:func:`switch_tilt_bound_deg`: 10.3-13.6 deg). Without
+    the restart the controller keeps what it learnt for 1.2 s while PX4's own HOLD flew: 11.5 deg
+    in one of two such flights (5.8 in the other; it used to reach 22 deg), so this flight
+    catches only a large learnt state. In twelve flights of the real code the switch
+    peaked at 1.6-8.3 deg (8.03 once under load, against an earlier fixed bound of 8 deg). The
+    steady hold after the switch is not bounded here: the mission's hold point is where the
+    vehicle took off, and flying back from PX4's wander to it tilts by up to ~18 deg by design. A
+    flight in which the simulator reported an impossible acceleration is void and flown again,
+    once, as in the square."""
+    void = []
     with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
-        c = companion("missions/hold.toml", px4.url)
-        code, out = c.finish(timeout=180)
-    assert code == 0, out
+        for _ in range(2):
+            c = companion("missions/hold.toml", px4.url)
+            code, out = c.finish(timeout=180)
+            assert code == 0, out
+            faults = simulator_faults_s(c.flight_dir(), ("2: offboard", "hold"))
+            if not faults:
+                break
+            void.append(faults[:3])
+        else:
+            raise AssertionError(f"the simulator reported an impossible acceleration twice: {void}")
     seg = segments(c.flight_dir())
     hold = seg["hold"]
     assert abs(hold["t_end"] - hold["t_start"] - 20.0) < 0.5 and hold["rms_error_m"] < 0.5, hold
-    assert seg["2: offboard"]["peak_tilt_deg"] < 8.0, seg["2: offboard"]
+    switch = seg["2: offboard"]
+    assert switch["peak_tilt_deg"] < switch_tilt_bound_deg(c.flight_dir(), switch), switch
 
 
 @pytest.mark.parametrize("backend", ["pymavlink", "mavsdk"])
