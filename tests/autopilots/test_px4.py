@@ -91,6 +91,22 @@ def simulator_faults_s(flight_dir, names=("square",)) -> list[float]:  # type: i
     return found
 
 
+def fly_valid(companion, mission: str, url: str, args: tuple[str, ...], names: tuple[str, ...],  # type: ignore[no-untyped-def]
+              voided: list, label: str, timeout: float):
+    """Fly ``mission``; a flight whose segments ``names`` hold an impossible acceleration
+    (:func:`simulator_faults_s`) is void, recorded in ``voided`` and flown again, once. Returns the
+    companion of the valid flight."""
+    for _ in range(2):
+        c = companion(mission, url, *args)
+        code, out = c.finish(timeout=timeout)
+        assert code == 0, f"{label}: {out}"
+        faults = simulator_faults_s(c.flight_dir(), names)
+        if not faults:
+            return c
+        voided.append((label, faults[:3]))
+    raise AssertionError(f"{label}: the simulator reported an impossible acceleration twice: {voided}")
+
+
 @pytest.mark.parametrize("backend", ["pymavlink", "mavsdk"])
 def test_square_twice_in_one_boot_within_px4s_own_figure(px4_build, companion, backend, record_property):
     """PX4 flies the square itself, then the companion flies it twice in the same boot: the second
@@ -99,15 +115,8 @@ def test_square_twice_in_one_boot_within_px4s_own_figure(px4_build, companion, b
     voided: list = []
 
     def fly(label: str, *args: str) -> dict:
-        for _ in range(2):
-            c = companion("missions/square_gps.toml", px4.url, *args)
-            code, out = c.finish(timeout=240)
-            assert code == 0, f"{label}: {out}"
-            faults = simulator_faults_s(c.flight_dir())
-            if not faults:
-                return segments(c.flight_dir())
-            voided.append((label, faults[:3]))
-        raise AssertionError(f"{label}: the simulator reported an impossible acceleration twice: {voided}")
+        c = fly_valid(companion, "missions/square_gps.toml", px4.url, args, ("square",), voided, label, 240)
+        return segments(c.flight_dir())
 
     with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
         figures = {"px4": fly("px4", "--controller", "autopilot")["square"]["rms_error_m"]}
@@ -152,18 +161,8 @@ def test_hold_and_a_bumpless_switch_to_offboard(px4_build, companion):
     vehicle took off, and flying back from PX4's wander to it tilts by up to ~18 deg by design. A
     flight in which the simulator reported an impossible acceleration is void and flown again,
     once, as in the square."""
-    void = []
     with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
-        for _ in range(2):
-            c = companion("missions/hold.toml", px4.url)
-            code, out = c.finish(timeout=180)
-            assert code == 0, out
-            faults = simulator_faults_s(c.flight_dir(), ("2: offboard", "hold"))
-            if not faults:
-                break
-            void.append(faults[:3])
-        else:
-            raise AssertionError(f"the simulator reported an impossible acceleration twice: {void}")
+        c = fly_valid(companion, "missions/hold.toml", px4.url, (), ("2: offboard", "hold"), [], "hold", 180)
     seg = segments(c.flight_dir())
     hold = seg["hold"]
     assert abs(hold["t_end"] - hold["t_start"] - 20.0) < 0.5 and hold["rms_error_m"] < 0.5, hold
