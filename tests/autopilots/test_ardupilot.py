@@ -73,7 +73,7 @@ def test_a_telemetry_outage_holds_in_brake_and_the_vehicle_keeps_its_altitude(ar
         relay_port = int(r.url.rsplit(":", 1)[1])
         with ArduCopterSitl(arducopter_binary, speedup=SPEEDUP, udp_port=relay_port) as ap:
             assert ap.alive()
-            c = companion("missions/hold.toml", f"udpin://127.0.0.1:{port}", "--connect-timeout", "60")
+            c = companion("missions/hold_gps.toml", f"udpin://127.0.0.1:{port}", "--connect-timeout", "60")
             c.wait_for("step hold", timeout=180)
             time.sleep(2.0)
             r.outage_now()

@@ -28,14 +28,13 @@ SPEED = 4.0
 SPREAD = 1.25
 """the companion's square RMS may be up to 25% above PX4's own in the same boot (run-to-run spread
 of either on the simulated GPS, measured over 6 boots: docs/autopilots.md)"""
-IMPOSSIBLE_M_S2 = 5.0 * 9.80665
-"""an accelerometer reading past 5 g in the air: SIH's quadrotor has a thrust-to-weight ratio of
-about 2, so its specific force in flight stays near 2 g (touchdowns, 4-6 g, happen in the landing,
-which is not checked). SIH v1.16 has been seen to report single samples of 12.7 g in a hover and
-27 g in level flight, after which PX4's estimator integrated the spike (a 1 m/s velocity jump)
-or the body stayed still while PX4 rolled it to 59 degrees (docs/autopilots.md, "A known fault of
-the simulator"); such a flight measures the simulator, not the companion, and is flown again
-once"""
+TOUCHDOWN_M_S2 = 5.0 * 9.80665
+"""an accelerometer reading past 5 g in the air is a touchdown: SIH's quadrotor has a thrust-to-weight
+ratio of about 2, so its specific force in flight stays near 2 g, and SIH stops a body that reaches
+its ground within one step, which the accelerometer reads as v / dt (0.3 m/s in 5 ms: 6 g). At
+1.5 m up this happened mid-square and mid-hold, because EKF2's height on SIH's GPS and barometer is
+off by up to ~1.1 m (docs/autopilots.md, "Ground contact, not a simulator fault"); the missions fly
+5 m up, and a touchdown before the landing fails the flight"""
 OFFBOARD = 6 << 16
 HOLD = (4 << 16) | (3 << 24)
 LAND = (4 << 16) | (6 << 24)
@@ -76,46 +75,41 @@ def _offboard_left_between(m: mavutil.mavfile, timeout: float) -> tuple[int, int
     raise AssertionError(f"PX4 did not leave OFFBOARD within {timeout} s (or was out of it already)")
 
 
-def simulator_faults_s(flight_dir, names=("square",)) -> list[float]:  # type: ignore[no-untyped-def]
+def touchdowns_s(flight_dir, names=("square",)) -> list[float]:  # type: ignore[no-untyped-def]
     """Vehicle times in the segments ``names`` at which the recorded HIGHRES_IMU read past
-    IMPOSSIBLE_M_S2."""
+    TOUCHDOWN_M_S2: the vehicle touched the ground in the air."""
     seg = segments(flight_dir)
     spans = [(seg[n]["t_start"], seg[n]["t_end"]) for n in names]
     log = mavutil.mavlink_connection(str(flight_dir / "traffic.tlog"))
     found = []
     while (m := log.recv_match(type="HIGHRES_IMU")) is not None:
         t = m.time_usec * 1e-6
-        if any(a <= t <= b for a, b in spans) and max(abs(m.xacc), abs(m.yacc), abs(m.zacc)) > IMPOSSIBLE_M_S2:
+        if any(a <= t <= b for a, b in spans) and max(abs(m.xacc), abs(m.yacc), abs(m.zacc)) > TOUCHDOWN_M_S2:
             found.append(round(t, 3))
     log.close()
     return found
 
 
-def fly_valid(companion, mission: str, url: str, args: tuple[str, ...], names: tuple[str, ...],  # type: ignore[no-untyped-def]
-              voided: list, label: str, timeout: float):
-    """Fly ``mission``; a flight whose segments ``names`` hold an impossible acceleration
-    (:func:`simulator_faults_s`) is void, recorded in ``voided`` and flown again, once. Returns the
-    companion of the valid flight."""
-    for _ in range(2):
-        c = companion(mission, url, *args)
-        code, out = c.finish(timeout=timeout)
-        assert code == 0, f"{label}: {out}"
-        faults = simulator_faults_s(c.flight_dir(), names)
-        if not faults:
-            return c
-        voided.append((label, faults[:3]))
-    raise AssertionError(f"{label}: the simulator reported an impossible acceleration twice: {voided}")
+def fly_clear(companion, mission: str, url: str, args: tuple[str, ...], names: tuple[str, ...],  # type: ignore[no-untyped-def]
+              label: str, timeout: float):
+    """Fly ``mission`` to its end (exit 0) and check that the vehicle did not touch the ground during
+    the segments ``names``; returns the companion."""
+    c = companion(mission, url, *args)
+    code, out = c.finish(timeout=timeout)
+    assert code == 0, f"{label}: {out}"
+    touched = touchdowns_s(c.flight_dir(), names)
+    assert not touched, f"{label}: the vehicle touched the ground in the air at {touched[:5]} s (vehicle time)"
+    return c
 
 
 @pytest.mark.parametrize("backend", ["pymavlink", "mavsdk"])
 def test_square_twice_in_one_boot_within_px4s_own_figure(px4_build, companion, backend, record_property):
     """PX4 flies the square itself, then the companion flies it twice in the same boot: the second
-    arming used to be refused (PX4 restores OFFBOARD after a disarm). A flight in which the
-    simulator reported an impossible acceleration is void and flown again, once."""
-    voided: list = []
+    arming used to be refused (PX4 restores OFFBOARD after a disarm). No square may touch the
+    ground (:func:`touchdowns_s`)."""
 
     def fly(label: str, *args: str) -> dict:
-        c = fly_valid(companion, "missions/square_gps.toml", px4.url, args, ("square",), voided, label, 240)
+        c = fly_clear(companion, "missions/square_gps.toml", px4.url, args, ("square",), label, 240)
         return segments(c.flight_dir())
 
     with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
@@ -125,7 +119,6 @@ def test_square_twice_in_one_boot_within_px4s_own_figure(px4_build, companion, b
             assert seg["_summary"]["output"] == "attitude" and seg["_summary"]["type_mask"] == 3
             figures[f"ism_do_{k}"] = seg["square"]["rms_error_m"]
     record_property("square_rms_m", figures)
-    record_property("void_flights", voided)
     for k in (1, 2):
         assert figures[f"ism_do_{k}"] <= SPREAD * figures["px4"], figures
 
@@ -158,11 +151,10 @@ def test_hold_and_a_bumpless_switch_to_offboard(px4_build, companion):
     catches only a large learnt state. In twelve flights of the real code the switch
     peaked at 1.6-8.3 deg (8.03 once under load, against an earlier fixed bound of 8 deg). The
     steady hold after the switch is not bounded here: the mission's hold point is where the
-    vehicle took off, and flying back from PX4's wander to it tilts by up to ~18 deg by design. A
-    flight in which the simulator reported an impossible acceleration is void and flown again,
-    once, as in the square."""
+    vehicle took off, and flying back from PX4's wander to it tilts by up to ~18 deg by design. The
+    vehicle must not touch the ground from the switch to the end of the hold."""
     with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
-        c = fly_valid(companion, "missions/hold.toml", px4.url, (), ("2: offboard", "hold"), [], "hold", 180)
+        c = fly_clear(companion, "missions/hold_gps.toml", px4.url, (), ("2: offboard", "hold"), "hold", 180)
     seg = segments(c.flight_dir())
     hold = seg["hold"]
     assert abs(hold["t_end"] - hold["t_start"] - 20.0) < 0.5 and hold["rms_error_m"] < 0.5, hold
