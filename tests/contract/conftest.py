@@ -49,7 +49,10 @@ def px4(request) -> Iterator[Target]:
 @pytest.fixture(params=["bundled", "firmware"])
 def copter(request) -> Iterator[Target]:
     if request.param == "bundled":
-        v = VehicleProcess("--flavour", "ardupilot", speedup=SPEED, env=child_env(), cwd=ROOT)
+        # the tests stream at 50 Hz of wall time: a stalled test process stops the simulated clock
+        # (up to 1 s of wall time) rather than leave the vehicle flying its last target
+        v = VehicleProcess("--flavour", "ardupilot", "--wait-for-setpoints", "0.5", speedup=SPEED, env=child_env(),
+                           cwd=ROOT)
         yield Target("bundled ardupilot", f"udpout:{v.url}")
         v.stop()
         return
