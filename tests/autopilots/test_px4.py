@@ -75,16 +75,16 @@ def _offboard_left_between(m: mavutil.mavfile, timeout: float) -> tuple[int, int
     raise AssertionError(f"PX4 did not leave OFFBOARD within {timeout} s (or was out of it already)")
 
 
-def touchdowns_s(flight_dir, names=("square",)) -> list[float]:  # type: ignore[no-untyped-def]
+def touchdowns_s(flight_dir, names=("square",), threshold_m_s2: float = TOUCHDOWN_M_S2) -> list[float]:  # type: ignore[no-untyped-def]
     """Vehicle times in the segments ``names`` at which the recorded HIGHRES_IMU read past
-    TOUCHDOWN_M_S2: the vehicle touched the ground in the air."""
+    ``threshold_m_s2`` (TOUCHDOWN_M_S2): the vehicle touched the ground in the air."""
     seg = segments(flight_dir)
     spans = [(seg[n]["t_start"], seg[n]["t_end"]) for n in names]
     log = mavutil.mavlink_connection(str(flight_dir / "traffic.tlog"))
     found = []
     while (m := log.recv_match(type="HIGHRES_IMU")) is not None:
         t = m.time_usec * 1e-6
-        if any(a <= t <= b for a, b in spans) and max(abs(m.xacc), abs(m.yacc), abs(m.zacc)) > TOUCHDOWN_M_S2:
+        if any(a <= t <= b for a, b in spans) and max(abs(m.xacc), abs(m.yacc), abs(m.zacc)) > threshold_m_s2:
             found.append(round(t, 3))
     log.close()
     return found
@@ -100,6 +100,34 @@ def fly_clear(companion, mission: str, url: str, args: tuple[str, ...], names: t
     touched = touchdowns_s(c.flight_dir(), names)
     assert not touched, f"{label}: the vehicle touched the ground in the air at {touched[:5]} s (vehicle time)"
     return c
+
+
+def test_the_touchdown_check_finds_a_touchdown_in_the_air_and_only_there(tmp_path):
+    """:func:`touchdowns_s` on a record written here (no firmware): 200 Hz of HIGHRES_IMU reading a
+    1 g hover and 2 g manoeuvres, with one 6 g sample mid-square (what SIH reports when the body
+    reaches its ground at 0.3 m/s) and a 9.8 g one in the landing. Found: the square's, and only
+    it; a threshold a little higher (7 g) or the landing's span asked for instead say otherwise."""
+    import json
+
+    from pymavlink.dialects.v20 import common
+
+    g = 9.80665
+    (tmp_path / "segments.json").write_text(json.dumps({"segments": [
+        {"name": "square", "t_start": 10.0, "t_end": 20.0}, {"name": "5: land", "t_start": 20.0, "t_end": 30.0}]}))
+    mav = common.MAVLink(None, srcSystem=1, srcComponent=1)
+    with open(tmp_path / "traffic.tlog", "wb") as fh:
+        for k in range(0, 6000):
+            t = k * 0.005
+            acc = (0.0, 0.0, -g if k % 40 else -2.0 * g)
+            if abs(t - 15.0) < 1e-9:
+                acc = (0.0, -6.0 * g, -g)
+            if abs(t - 25.0) < 1e-9:
+                acc = (0.0, 0.0, -9.8 * g)
+            msg = mav.highres_imu_encode(round(t * 1e6), *acc, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)
+            fh.write(round(t * 1e6).to_bytes(8, "big") + msg.pack(mav))
+    assert touchdowns_s(tmp_path, ("square",)) == [15.0]
+    assert touchdowns_s(tmp_path, ("5: land",)) == [25.0]
+    assert touchdowns_s(tmp_path, ("square",), threshold_m_s2=7.0 * g) == []
 
 
 @pytest.mark.parametrize("backend", ["pymavlink", "mavsdk"])
