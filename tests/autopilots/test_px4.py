@@ -33,7 +33,7 @@ TOUCHDOWN_M_S2 = 5.0 * 9.80665
 ratio of about 2, so its specific force in flight stays near 2 g, and SIH stops a body that reaches
 its ground within one step, which the accelerometer reads as v / dt (0.3 m/s in 5 ms: 6 g). At
 1.5 m up this happened mid-square and mid-hold, because EKF2's height on SIH's GPS and barometer is
-off by up to ~1.1 m (docs/autopilots.md, "Ground contact, not a simulator fault"); the missions fly
+off by up to ~1.6 m (docs/autopilots.md, "Ground contact, not a simulator fault"); the missions fly
 5 m up, and a touchdown before the landing fails the flight"""
 OFFBOARD = 6 << 16
 HOLD = (4 << 16) | (3 << 24)
