@@ -467,7 +467,7 @@ class Flight:
             elif link.state.sysid and time.monotonic() - link.state.wall_last < m.safety.link_lost_s:
                 await self._recover(supervisor.recovery(
                     self.expect_offboard, link.state.offboard, supervisor.outage_recent(self.watch, time.monotonic()),
-                    link.state.mode, link.state.autopilot))
+                    link.state.mode, link.state.autopilot, link.state.on_ground))
             result = ("aborted", str(exc))
         finally:
             self.engaged = False

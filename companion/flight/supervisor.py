@@ -188,19 +188,21 @@ LANDING_MODES = frozenset({"LAND", "RTL", "PRECLAND", "SMART_RTL"})
 HOLDING_MODES = frozenset({"HOLD", "LOITER", "BRAKE", "POSHOLD"})
 
 
-def recovery(expect_offboard: bool, offboard: bool, outage: bool, mode: str, autopilot: str) -> str:
+def recovery(expect_offboard: bool, offboard: bool, outage: bool, mode: str, autopilot: str,
+             on_ground: bool = False) -> str:
     """After an abort or an interrupt, what the companion does with the vehicle:
 
     - ``"hold_then_land"``: it is ours (we fly it offboard, or it is still in the autopilot's own
       take-off/hold before offboard): hold, then land;
     - ``"leave"``: the autopilot left offboard by itself — a pilot or ground station took over, or
       its own failsafe is landing it (a failsafe is never cancelled: PX4 v1.16 without RC descends
-      in what its heartbeat calls POSCTL);
-    - ``"land"``: it left offboard during a telemetry outage and now merely holds: land it.
+      in what its heartbeat calls POSCTL) or has landed it (``on_ground``, EXTENDED_SYS_STATE: the
+      failsafe's landing ends in HOLD, armed until the autopilot disarms it; nothing to land);
+    - ``"land"``: it left offboard during a telemetry outage and now merely holds in the air: land it.
     """
     if not expect_offboard or offboard:
         return "hold_then_land"
-    if not outage or mode in LANDING_MODES or (autopilot == "px4" and mode == "POSCTL"):
+    if not outage or mode in LANDING_MODES or (autopilot == "px4" and mode == "POSCTL") or on_ground:
         return "leave"
     return "land" if mode in HOLDING_MODES else "leave"
 

@@ -48,6 +48,7 @@ class VehicleState:
     offboard: bool = False
     """the autopilot is in the mode that flies our attitude setpoints"""
     landed_state: int = 0
+    """MAV_LANDED_STATE from EXTENDED_SYS_STATE (0: the autopilot does not say)"""
     armable: bool | None = None
     """the autopilot's pre-arm checks pass (SYS_STATUS pre-arm bit); None if it does not say"""
     wall_heartbeat: float = -math.inf
@@ -145,6 +146,11 @@ class VehicleState:
     def t(self) -> float:
         """The vehicle's newest timestamp."""
         return max(self.t_pos, self.t_att, self.t_imu)
+
+    @property
+    def on_ground(self) -> bool:
+        """The autopilot says the vehicle is on the ground (MAV_LANDED_STATE_ON_GROUND)."""
+        return self.landed_state == 1
 
     @property
     def has_navigation(self) -> bool:

@@ -84,6 +84,8 @@ def test_recovery_never_fights_a_pilot_nor_cancels_a_failsafe_landing():
     assert sv.recovery(True, False, True, "LAND", "px4") == "leave"  # its failsafe lands it
     assert sv.recovery(True, False, True, "POSCTL", "px4") == "leave"  # PX4 v1.16's descent without RC
     assert sv.recovery(True, False, True, "BRAKE", "ardupilot") == "land"  # it only holds
+    assert sv.recovery(True, False, True, "HOLD", "px4") == "land"  # holds in the air after the outage
+    assert sv.recovery(True, False, True, "HOLD", "px4", on_ground=True) == "leave"  # its failsafe landed it
     assert not sv.may_command_hold(expect_offboard=True, offboard=False)
     assert sv.may_command_hold(expect_offboard=True, offboard=True)
 
