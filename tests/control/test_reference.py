@@ -135,3 +135,26 @@ def test_reference_filter_keeps_its_jerk_limit_when_the_speed_saturates():
         a_prev = r.accel_ned_m_s2
         assert vec.norm(r.vel_ned_m_s) <= 2.0 + 1e-9
     assert worst <= 20.0 * 1.05
+
+
+def test_reference_filter_stepped_at_10_hz_does_not_creep_out_of_a_ceiling():
+    """At 10 Hz with a 5 rad/s bandwidth (w dt = 0.5) one step at a time, the speed limit made the
+    vertical velocity limit-cycle on a horizontal leg and the reference crept 3 cm up from 1.0 m
+    (hypothesis found a mission at its 1.0 m ceiling flying out of it, tests/fuzz). Now the filter
+    integrates in 20 ms sub-steps: from 1.0 m up towards (0, 4, -0.5) at 0.1 m/s it never rises
+    above where it started, and lands on what 100 Hz gives within 5 mm."""
+    p = TrajectoryParams(max_speed_m_s=0.1, max_accel_m_s2=5.0, max_jerk_m_s3=25.0, bandwidth_rad_s=5.0)
+
+    def fly(dt: float) -> tuple[float, tuple]:
+        f = ReferenceFilter(p, (0.0, 0.0, -1.0))
+        for _ in range(round(0.1 / dt)):  # the fuzzed mission's 0.1 s hold at 0.5 m first
+            f.update((0.0, 0.0, -0.5), 0.0, dt)
+        top = -1.0
+        for _ in range(round(10.0 / dt)):
+            top = min(top, f.update((0.0, 4.0, -0.5), 0.0, dt).pos_ned_m[2])
+        return top, f.pos_ned_m
+
+    top, at_10hz = fly(0.1)
+    _, at_100hz = fly(0.01)
+    assert top >= -1.0 - 1e-9, top
+    assert np.allclose(at_10hz, at_100hz, atol=0.005), (at_10hz, at_100hz)
