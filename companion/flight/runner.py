@@ -262,12 +262,19 @@ class Flight:
                 self._breach = verdict.breach
 
     async def _hold_while_ours(self) -> None:
-        """Command hold, retried while the link is down, but only while the vehicle still flies our
-        setpoints: a retry that lands after the autopilot's own failsafe began would cancel it."""
+        """Command hold once a heartbeat heard after the request says the vehicle still flies our
+        setpoints (retried while the link is down): a hold that lands after the autopilot's own
+        failsafe began would cancel it, and the mode known before the outage is stale."""
         st = self.link.state
         for _ in range(10):
-            if not supervisor.may_command_hold(self.expect_offboard, st.offboard):
-                self.log(f"the autopilot left offboard by itself (mode {st.mode}): no hold sent")
+            asked = st.wall_heartbeat
+            end = time.monotonic() + self.mission.safety.link_lost_s
+            while st.wall_heartbeat <= asked and time.monotonic() < end:
+                await asyncio.sleep(0.02)
+            heard = st.wall_heartbeat > asked
+            if not supervisor.may_command_hold(self.expect_offboard, st.offboard, heard):
+                self.log(f"the autopilot left offboard by itself (mode {st.mode}): no hold sent" if heard else
+                         "no heartbeat since the outage began: no hold sent (the autopilot's failsafe decides)")
                 return
             try:
                 await self.link.hold(attempts=1)

@@ -207,7 +207,10 @@ def recovery(expect_offboard: bool, offboard: bool, outage: bool, mode: str, aut
     return "land" if mode in HOLDING_MODES else "leave"
 
 
-def may_command_hold(expect_offboard: bool, offboard: bool) -> bool:
+def may_command_hold(expect_offboard: bool, offboard: bool, mode_heard_since: bool = True) -> bool:
     """A hold queued during an outage is sent only while the vehicle still flies our setpoints: once
-    the autopilot left offboard by itself (its failsafe started), a late hold would cancel it."""
-    return not expect_offboard or offboard
+    the autopilot left offboard by itself (its failsafe started), a late hold would cancel it. The
+    mode must have been heard since the hold was asked for (``mode_heard_since``): the one known
+    before is as old as the outage, and the autopilot's offboard-loss failsafe may have started
+    meanwhile unseen (a retry that got through as the link came back cancelled PX4's descent)."""
+    return not expect_offboard or (offboard and mode_heard_since)

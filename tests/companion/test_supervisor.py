@@ -88,6 +88,7 @@ def test_recovery_never_fights_a_pilot_nor_cancels_a_failsafe_landing():
     assert sv.recovery(True, False, True, "HOLD", "px4", on_ground=True) == "leave"  # its failsafe landed it
     assert not sv.may_command_hold(expect_offboard=True, offboard=False)
     assert sv.may_command_hold(expect_offboard=True, offboard=True)
+    assert not sv.may_command_hold(expect_offboard=True, offboard=True, mode_heard_since=False)  # stale mode
 
 
 def test_a_mission_timeout_fires_on_the_wall_clock_when_stamps_stop():
