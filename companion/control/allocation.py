@@ -12,7 +12,11 @@ counter-clockwise (``+k_Q w^2``). With ``W_i = w_i^2``::
     tau_z = k_Q (-W1 + W2 - W3 + W4)                             yaw right (+z, down)
     T     = k_F (W1 + W2 + W3 + W4)
 
-This is (4) with the roll row's sign flipped by the FRD y axis. The plant calls
+This is (4) with the roll row's sign flipped by the FRD y axis. The "x" layout is the same four
+rotors turned by -45 degrees about z_B (rotor 1 front-left, 2 back-left, 3 back-right, 4
+front-right, the same spin directions): a moment is linear in the rotor positions, so its
+torque is the "+" torque turned by the same angle, ``tau_xy' = R_z(-45 deg) tau_xy`` (PX4's and
+ArduPilot's quad X motors 1-4 are rotors 4, 2, 1, 3). The plant calls
 :func:`wrench_from_rotor_speeds` (the physics) and the onboard loop :func:`rotor_speeds_sq_for`
 (the mixer): the matrix exists once.
 """
@@ -46,12 +50,15 @@ class RotorModel(NamedTuple):
     arm_length_m: float
     rotor_speed_min_rad_s: float
     rotor_speed_max_rad_s: float
+    layout_cos: float
+    layout_sin: float
+    """the layout's turn about z_B (:attr:`VehicleParams.layout`): (1, 0) for the "plus" layout"""
 
     @staticmethod
     def of(vehicle: VehicleParams) -> RotorModel:
         v = vehicle
         return RotorModel(v.k_thrust_n_s2, v.k_torque_nm_s2, v.arm_length_m, v.rotor_speed_min_rad_s,
-                          v.rotor_speed_max_rad_s)
+                          v.rotor_speed_max_rad_s, v.layout_cos, v.layout_sin)
 
 
 Rotors = Union[VehicleParams, RotorModel]
@@ -62,8 +69,12 @@ def wrench_from_rotor_speeds_sq(w_sq: Rotors4, vehicle: Rotors) -> tuple[Vec3, R
     """Body torque [N m] and collective thrust [N] of squared rotor speeds, (4)."""
     kf, kq, arm = vehicle.k_thrust_n_s2, vehicle.k_torque_nm_s2, vehicle.arm_length_m
     w1, w2, w3, w4 = w_sq
-    torque = (arm * kf * (w2 - w4), arm * kf * (w1 - w3), kq * (-w1 + w2 - w3 + w4))
-    return torque, kf * (w1 + w2 + w3 + w4)
+    tx, ty = arm * kf * (w2 - w4), arm * kf * (w1 - w3)
+    s = vehicle.layout_sin
+    if s != 0.0:  # the "x" layout: the "+" moment turned about z_B
+        c = vehicle.layout_cos
+        tx, ty = c * tx - s * ty, s * tx + c * ty
+    return (tx, ty, kq * (-w1 + w2 - w3 + w4)), kf * (w1 + w2 + w3 + w4)
 
 
 @jitable
@@ -77,8 +88,13 @@ def rotor_speeds_sq_for(torque_nm: Vec3, thrust_n: Real, vehicle: Rotors) -> Rot
     """``Omega = B^-1 u``, solved analytically (unclipped, may leave the rotors' range)."""
     kf, kq, arm = vehicle.k_thrust_n_s2, vehicle.k_torque_nm_s2, vehicle.arm_length_m
     a = thrust_n / kf
-    x = torque_nm[0] / (arm * kf)
-    y = torque_nm[1] / (arm * kf)
+    tx, ty = torque_nm[0], torque_nm[1]
+    s = vehicle.layout_sin
+    if s != 0.0:  # the "x" layout: turn the moment back onto the "+" rotors
+        c = vehicle.layout_cos
+        tx, ty = c * tx + s * ty, -s * tx + c * ty
+    x = tx / (arm * kf)
+    y = ty / (arm * kf)
     z = torque_nm[2] / kq
     front_back = 0.25 * (a - z)
     left_right = 0.25 * (a + z)

@@ -32,7 +32,11 @@ __all__ = [
     "to_mapping",
     "attitude_stability_margin",
     "FORCE_SOURCES",
+    "LAYOUTS",
 ]
+
+LAYOUTS: dict[str, tuple[float, float]] = {"plus": (1.0, 0.0), "x": (math.sqrt(0.5), -math.sqrt(0.5))}
+"""rotor layouts: the cosine and sine of the angle the "+" rotors are turned by about z_B (-45 deg for "x")"""
 
 FORCE_SOURCES = ("commanded", "measured")
 """The force observer's force input (30): see :attr:`PositionGains.force_source`."""
@@ -66,6 +70,22 @@ class VehicleParams:
     rotor_speed_min_rad_s: float = 112.6
     rotor_speed_max_rad_s: float = 900.6
     gravity_m_s2: float = 9.81
+    layout: str = "plus"
+    """``"plus"``: rotors on the body axes (the paper's Hummingbird); ``"x"``: the same rotors turned
+    45 degrees about z_B, rotor 1 front-left (:mod:`~companion.control.allocation`)"""
+
+    def __post_init__(self) -> None:
+        if self.layout not in LAYOUTS:
+            raise ParamError("layout", f"expected one of {', '.join(LAYOUTS)}, got {self.layout!r}")
+
+    @property
+    def layout_cos(self) -> float:
+        """cos of the angle the rotors are turned by about z_B (1 for "plus")"""
+        return LAYOUTS[self.layout][0]
+
+    @property
+    def layout_sin(self) -> float:
+        return LAYOUTS[self.layout][1]
 
     @property
     def thrust_max_n(self) -> float:

@@ -79,11 +79,12 @@ class SimVehicle:
         self.imu_monitor: ImuMonitor | None = None
         self.mocap_rates = MocapRates()
 
-    def enable_fault_checks(self) -> None:
-        """Check every IMU sample and accept injected faults (the MAVLink vehicle; the offline
-        simulator, which flies thousands of fault-free vehicles, skips this)."""
+    def enable_fault_checks(self, monitor: bool = True) -> None:
+        """Accept injected faults and (``monitor``) check every IMU sample as the bundled firmware
+        does (the MAVLink vehicle; the offline simulator, which flies thousands of fault-free
+        vehicles, skips this; a real autopilot flying the plant does its own checks)."""
         self.faults = SensorFaults()
-        self.imu_monitor = ImuMonitor()
+        self.imu_monitor = ImuMonitor() if monitor else None
 
     _degraded = False
     DEGRADED_OMEGA_C_RAD_S = 6.0
@@ -129,17 +130,30 @@ class SimVehicle:
 
     def step(self, setpoint: AttitudeSetpoint) -> None:
         """Advance one plant step with the firmware tracking ``setpoint`` (motors on)."""
-        dt = self.dt
-        t = self.t
         est = self.estimator
         if self.imu_monitor is not None and self.imu_monitor.failed:
             self.omega_est = self.mocap_rates.omega_rad_s  # no gyro: rates from the tracking system
         else:
-            self.omega_est = est.predict(self.imu_sample.gyro_rad_s, dt)
+            self.omega_est = est.predict(self.imu_sample.gyro_rad_s, self.dt)
         if self.motors_on:
-            cmd = self.onboard.update(est.q, self.omega_est, setpoint, dt)
+            cmd = self.onboard.update(est.q, self.omega_est, setpoint, self.dt)
         else:
             cmd = self.onboard.stop()
+        tracked = self.advance(cmd)
+        if tracked is not None:
+            if self.imu_monitor is not None and self.imu_monitor.failed:
+                est.q = tracked.q
+                self.mocap_rates.update(tracked.time_s, tracked.q)
+            else:
+                est.correct(tracked.q)
+
+    def advance(self, rotor_cmd_rad_s: tuple[Real, Real, Real, Real]) -> MocapSample | None:
+        """One plant step with the rotors commanded to ``rotor_cmd_rad_s``: wind and external
+        forces at ``t``, the body, the IMU (faults injected) and the tracking system. Returns the
+        tracking sample that became available, if any. (:meth:`step` puts the onboard loop in
+        front; a real autopilot's firmware flying this plant calls it directly.)"""
+        dt = self.dt
+        t = self.t
         wind_ned = self.wind.step()
         self.wind_ned = wind_ned
         force = evaluate(self.forces, t)
@@ -151,7 +165,7 @@ class SimVehicle:
             e = self.extra_torque_nm
             torque = (torque[0] + e[0], torque[1] + e[1], torque[2] + e[2])
         plant = self.plant
-        self.wrench = plant.step(cmd, wind_ned, force, torque, dt)
+        self.wrench = plant.step(rotor_cmd_rad_s, wind_ned, force, torque, dt)
         sample = self.imu.sample(plant.state, self.wrench)
         if self.faults is not None:
             sample = self._faulty_imu(sample, t + dt)
@@ -167,26 +181,20 @@ class SimVehicle:
         self.t = t + dt
         if self.faults is not None and SensorFaults.active(self.faults.mocap_dropout, self.t):
             self.mocap.drop_out(self.t)
-            tracked = None
-        else:
-            tracked = self.mocap.update(self.t, plant.state)
-        if tracked is not None:
-            if self.imu_monitor is not None and self.imu_monitor.failed:
-                est.q = tracked.q
-                self.mocap_rates.update(tracked.time_s, tracked.q)
-            else:
-                est.correct(tracked.q)
+            return None
+        return self.mocap.update(self.t, plant.state)
 
     def _faulty_imu(self, sample: ImuSample, t: float) -> ImuSample:
-        """Inject the active IMU faults, then the firmware's check (:class:`ImuMonitor`)."""
+        """Inject the active IMU faults, then the firmware's check (:class:`ImuMonitor`) where
+        this vehicle's own firmware flies it."""
         f = self.faults
-        assert f is not None and self.imu_monitor is not None
+        assert f is not None
         if SensorFaults.active(f.imu_nan, t):
             nan = float("nan")
             sample = ImuSample((nan, nan, nan), (nan, nan, nan))
         elif SensorFaults.active(f.imu_frozen, t):
             sample = self.imu_sample if self.imu_sample is not None else sample
-        return self.imu_monitor.check(sample, t)
+        return self.imu_monitor.check(sample, t) if self.imu_monitor is not None else sample
 
     def mean_specific_force_body(self) -> Vec3:
         """Mean accelerometer reading since the last call (what a slower consumer should use)."""

@@ -23,13 +23,19 @@ POSITIONS = np.array([[1, 0, 0], [0, -1, 0], [-1, 0, 0], [0, 1, 0]], dtype=float
 SPIN_AXIS_Z = np.array([+1, -1, +1, -1], dtype=float)
 
 
-def geometric_wrench(w_sq):
+# the "x" layout: rotor 1 front-left, 2 back-left, 3 back-right, 4 front-right (PX4's and
+# ArduPilot's quad X motors 3, 2, 4, 1), same spins
+X = VehicleParams(layout="x")
+X_POSITIONS = np.array([[1, -1, 0], [-1, -1, 0], [-1, 1, 0], [1, 1, 0]], dtype=float) * X.arm_length_m / math.sqrt(2)
+
+
+def geometric_wrench(w_sq, positions=POSITIONS):
     """Sum of r_i x F_i plus rotor reaction torques, written out from first principles."""
     torque = np.zeros(3)
     thrust = 0.0
     for i in range(4):
         f = V.k_thrust_n_s2 * w_sq[i]
-        torque += np.cross(POSITIONS[i], [0.0, 0.0, -f])  # thrust along -z_B
+        torque += np.cross(positions[i], [0.0, 0.0, -f])  # thrust along -z_B
         torque[2] += -SPIN_AXIS_Z[i] * V.k_torque_nm_s2 * w_sq[i]  # reaction opposes spin
         thrust += f
     return torque, thrust
@@ -46,10 +52,24 @@ def test_wrench_matches_geometry(w_sq):
     assert math.isclose(thrust, g_thrust, rel_tol=1e-12)
 
 
-@given(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3), st.floats(-0.05, 0.05), st.floats(2.0, 15.0))
-def test_inverse_is_exact(tx, ty, tz, thrust):
-    w_sq = rotor_speeds_sq_for((tx, ty, tz), thrust, V)
-    torque, t = wrench_from_rotor_speeds_sq(w_sq, V)
+@given(speeds_sq)
+def test_the_x_layout_matches_its_geometry(w_sq):
+    torque, thrust = wrench_from_rotor_speeds_sq(w_sq, X)
+    g_torque, g_thrust = geometric_wrench(w_sq, X_POSITIONS)
+    np.testing.assert_allclose(torque, g_torque, rtol=1e-12, atol=1e-15)
+    assert math.isclose(thrust, g_thrust, rel_tol=1e-12)
+
+
+def test_the_front_right_rotor_of_an_x_rolls_left_and_pitches_up():
+    (tx, ty, _), _ = wrench_from_rotor_speeds_sq((0.0, 0.0, 0.0, 1e5), X)
+    assert tx < 0 < ty and math.isclose(-tx, ty)
+
+
+@given(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3), st.floats(-0.05, 0.05), st.floats(2.0, 15.0),
+       st.sampled_from([V, X]))
+def test_inverse_is_exact(tx, ty, tz, thrust, vehicle):
+    w_sq = rotor_speeds_sq_for((tx, ty, tz), thrust, vehicle)
+    torque, t = wrench_from_rotor_speeds_sq(w_sq, vehicle)
     np.testing.assert_allclose(torque, (tx, ty, tz), atol=1e-12)
     assert math.isclose(t, thrust, rel_tol=1e-12)
 
