@@ -10,13 +10,13 @@ and differenced velocity, the onboard attitude estimate and bias-corrected rates
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
 
+from ..plant.geo import GeoOrigin
 from .logic import Autopilot, custom_mode
 
 __all__ = ["GeoOrigin", "Telemetry", "DEFAULT_RATES_HZ", "SYS_STATUS_SENSORS", "PREARM_CHECK"]
@@ -24,7 +24,6 @@ __all__ = ["GeoOrigin", "Telemetry", "DEFAULT_RATES_HZ", "SYS_STATUS_SENSORS", "
 POSITION_STALE_S = 0.1
 """tracking samples normally arrive every 17 ms, 10 ms late"""
 
-EARTH_RADIUS_M = 6378137.0
 
 # SYS_STATUS sensor bits MAVSDK reads for its health flags (gyro, accel, mag calibrated; GPS and
 # vision position for local/global position ok; motor outputs) and the pre-arm check bit.
@@ -59,21 +58,6 @@ DEFAULT_RATES_HZ: dict[int, float] = {
     mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: 1.0,
 }
 """Default stream rates (simulated Hz), PX4's onboard-link set; SET_MESSAGE_INTERVAL changes them."""
-
-
-@dataclass(frozen=True)
-class GeoOrigin:
-    """Where the local NED origin is on Earth (default: PX4 SITL's Zurich field)."""
-
-    lat_deg: float = 47.397742
-    lon_deg: float = 8.545594
-    alt_m: float = 488.0
-
-    def to_global(self, north_m: float, east_m: float, down_m: float) -> tuple[int, int, int]:
-        """``(lat 1e7 deg, lon 1e7 deg, alt mm AMSL)`` by a flat-earth projection."""
-        lat = self.lat_deg + math.degrees(north_m / EARTH_RADIUS_M)
-        lon = self.lon_deg + math.degrees(east_m / (EARTH_RADIUS_M * math.cos(math.radians(self.lat_deg))))
-        return int(round(lat * 1e7)), int(round(lon * 1e7)), int(round((self.alt_m - down_m) * 1000))
 
 
 def _f(x: object) -> float:

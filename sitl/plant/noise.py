@@ -21,6 +21,10 @@ STREAMS = {
     "mocap": 3,
     "wind": 4,
     "bias": 5,
+    "baro": 6,
+    "mag": 7,
+    "gnss": 8,
+    "gnss_start": 9,
 }
 
 

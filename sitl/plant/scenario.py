@@ -28,6 +28,7 @@ from companion.control.vector import Vec3
 
 from .airframe import AirframeParams
 from .disturbances import Profile
+from .nav_sensors import NavSensorParams
 from .onboard import EstimatorGains
 from .sensors import SensorParams
 from .wind import WindParams
@@ -116,6 +117,8 @@ class Scenario:
     airframe: AirframeParams = field(default_factory=AirframeParams)
     model_error: ModelError = field(default_factory=ModelError)
     sensors: SensorParams = field(default_factory=SensorParams)
+    nav_sensors: NavSensorParams = field(default_factory=NavSensorParams)
+    """what a real autopilot's estimator navigates by when its firmware flies the plant (``sitl --firmware``)"""
     estimator: EstimatorGains = field(default_factory=EstimatorGains)
     wind: WindParams = field(default_factory=WindParams)
     forces: tuple[Profile, ...] = ()
