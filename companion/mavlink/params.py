@@ -13,7 +13,13 @@ import math
 import struct
 
 __all__ = ["param_name", "decode_value", "encode_value", "INTEGER_TYPES", "MAV_PARAM_TYPE_REAL32",
-           "MAV_PARAM_TYPE_INT32"]
+           "MAV_PARAM_TYPE_INT32", "PLANT_COMPID"]
+
+PLANT_COMPID = 25
+"""MAV_COMP_ID_USER1: the simulated plant as a component of its own when a real autopilot's
+firmware flies it (``sitl --firmware``); it serves the SIM_* parameters (wind, external forces,
+faults) that the autopilot does not have. A parameter the autopilot has is always the
+autopilot's: the plant never serves one of the same name."""
 
 MAV_PARAM_TYPE_UINT8, MAV_PARAM_TYPE_INT8, MAV_PARAM_TYPE_UINT16, MAV_PARAM_TYPE_INT16 = 1, 2, 3, 4
 MAV_PARAM_TYPE_UINT32, MAV_PARAM_TYPE_INT32, MAV_PARAM_TYPE_REAL32 = 5, 6, 9

@@ -1,4 +1,5 @@
-"""``sitl``: run the simulated vehicle as a MAVLink endpoint.
+"""The bundled vehicle behind the ``sitl`` command (:mod:`sitl.cli`): options checked, vehicle
+built, server run.
 
     sitl                                   # udp 127.0.0.1:14540, real time, ISM+DO attitude loop
     sitl --speedup 10 --scenario E5_suspended_weight --attitude pd_do
@@ -22,12 +23,10 @@ import math
 import signal
 import socket
 import sys
-from typing import NoReturn, Sequence
+from typing import NoReturn
 
 from companion.config import ConfigError
-from companion.control.attitude import ATTITUDE_CONTROLLERS
-from companion.mavlink.signing import SigningError
-from companion.mavlink.signing_options import add_signing_options, signing_key
+from companion.mavlink.signing_options import signing_key
 
 from ..plant.scenario import Scenario, load_scenario
 from ..plant.vehicle import SimVehicle
@@ -36,7 +35,7 @@ from .parameters import out_of_range
 from .server import MavlinkServer, ServerConfig
 from .telemetry import GeoOrigin
 
-__all__ = ["main", "build", "parse_address"]
+__all__ = ["build", "serve", "parse_address", "parse_param", "parse_origin"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -176,60 +175,6 @@ async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) ->
               "peer_table": {"added": server.peers.added, "evicted": server.peers.evicted,
                              "refused": server.peers.refused, "expired": server.peers.expired}}
     print(f"sitl: stopped {json.dumps(report)}", flush=True)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    ap = _Parser(prog="sitl", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--listen", type=parse_address, default=("127.0.0.1", 14540), help="HOST:PORT to bind")
-    ap.add_argument("--peer", type=parse_address, action="append", default=[],
-                    help="HOST:PORT to send to from the start (repeatable)")
-    ap.add_argument("--speedup", type=_finite, default=1.0, help="simulated seconds per wall second")
-    ap.add_argument("--scenario", help="scenario file or bundled name: vehicle, wind, forces, gains")
-    ap.add_argument("--attitude", choices=ATTITUDE_CONTROLLERS, default="ism_do",
-                    help="onboard attitude controller")
-    ap.add_argument("--flavour", choices=("px4", "paper", "ardupilot"), default="px4",
-                    help="px4: PX4 v1.16's rules (with an attitude only the yaw rate of SET_ATTITUDE_TARGET is a "
-                         "feed-forward; offboard loss descends; ...); paper: a PX4-like vehicle whose inner loop "
-                         "flies the attitude and its body rates together, as the paper's does "
-                         "(fly it with companion --output attitude_rates); "
-                         "ardupilot: behave like ArduCopter (GUIDED, GUID_OPTIONS, ANGLE_MAX, ...)")
-    ap.add_argument("--param", type=parse_param, action="append", default=[], metavar="NAME=VALUE",
-                    help="set a parameter at start, e.g. SIM_WIND_N=3 SIM_TURB_SIGMA=0.6 SIM_FORCE_X=6 "
-                         "SIM_MASS_FAC=1.3 (repeatable; the full list: PARAM_REQUEST_LIST or docs/sitl.md)")
-    ap.add_argument("--seed", type=_int_in(0, 2**32 - 1), default=1)
-    ap.add_argument("--sysid", type=_int_in(1, 255), default=1)
-    ap.add_argument("--origin", type=parse_origin, default=GeoOrigin(), help="LAT,LON,ALT of the local origin")
-    ap.add_argument("--wait-for-setpoints", type=_finite, default=0.0, metavar="SECONDS",
-                    help="while flying a companion's stream, stop the simulated clock (up to 1 s of wall time) "
-                         "when the newest setpoint is older than SECONDS of simulated time: a stalled host "
-                         "then does not fly the vehicle without its companion (tests, soaks; 0: off)")
-    ap.add_argument("--lockstep", type=_finite, default=0.0, metavar="PERIOD_MS", nargs="?", const=10.0,
-                    help="while flying a companion's stream, advance the simulated world only as setpoints arrive, "
-                         "PERIOD_MS (default 10: a 100 Hz companion) per setpoint; --speedup stays the upper "
-                         "bound. Host load then changes how long a flight takes, not what it measures")
-    ap.add_argument("--duration", type=_finite, default=None, help="stop after this many simulated seconds")
-    add_signing_options(ap)
-    ap.add_argument("--quiet", action="store_true")
-    args = ap.parse_args(argv)
-    if not 0.05 <= args.speedup <= 1000:
-        ap.error("--speedup must be within 0.05..1000")
-    if not (args.wait_for_setpoints == 0 or 0.005 <= args.wait_for_setpoints <= 0.5):
-        ap.error("--wait-for-setpoints must be 0 (off) or within 0.005..0.5 s (below the 1 s offboard-loss timeout)")
-    if not (args.lockstep == 0 or 1.0 <= args.lockstep <= 100.0):
-        ap.error("--lockstep must be a period of 1..100 ms")
-    if args.duration is not None and args.duration <= 0:
-        ap.error("--duration must be positive")
-    try:
-        server = build(args)
-    except (ConfigError, SigningError) as exc:
-        return _fail(str(exc))
-    except Exception as exc:  # anything else a scenario's values can provoke: one line, never a traceback
-        return _fail(f"cannot build the vehicle: {type(exc).__name__}: {exc}")
-    try:
-        asyncio.run(serve(server, args.duration, args.quiet))
-    except OSError as exc:
-        return _fail(f"cannot listen on {args.listen[0]}:{args.listen[1]}: {exc.strerror or exc}")
-    return 0
 
 
 def _fail(message: str) -> int:

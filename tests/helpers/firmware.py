@@ -26,34 +26,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from sitl.firmware.builds import autopilots_root, find_arducopter, find_px4
+
 __all__ = ["find_px4", "find_arducopter", "Px4Sih", "ArduCopterSitl", "autopilots_root"]
-
-
-def autopilots_root() -> Path:
-    return Path(os.environ.get("ISMDO_AUTOPILOTS", str(Path.home() / "autopilots"))).expanduser()
-
-
-def find_px4() -> tuple[Path | None, str]:
-    """PX4's build directory, or None and why not."""
-    env = os.environ.get("PX4_SITL_BUILD")
-    build = Path(env).expanduser() if env else autopilots_root() / "px4/PX4-Autopilot/build/px4_sitl_default"
-    where = "PX4_SITL_BUILD" if env else f"the default location {build}"
-    if not (build / "bin" / "px4").is_file():
-        return None, (f"no PX4 SITL build: set PX4_SITL_BUILD to a px4_sitl_default build directory "
-                      f"({where} has no bin/px4)")
-    if not (build / "etc" / "init.d-posix" / "rcS").is_file():
-        return None, f"{build} has no etc/init.d-posix/rcS: not a PX4 SITL build"
-    return build, ""
-
-
-def find_arducopter() -> tuple[Path | None, str]:
-    """ArduCopter's SITL binary, or None and why not."""
-    env = os.environ.get("ARDUCOPTER_SITL")
-    binary = Path(env).expanduser() if env else autopilots_root() / "ardupilot/ardupilot/build/sitl/bin/arducopter"
-    where = "ARDUCOPTER_SITL" if env else f"the default location {binary}"
-    if not binary.is_file() or not os.access(binary, os.X_OK):
-        return None, f"no ArduCopter SITL: set ARDUCOPTER_SITL to an arducopter SITL binary ({where} is not one)"
-    return binary, ""
 
 
 def _port_free(port: int) -> bool:

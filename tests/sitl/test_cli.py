@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sitl.autopilot.cli import main
+from sitl.cli import main
 
 
 def free_port() -> int:

@@ -13,12 +13,15 @@ ALLOWED = {
     "autopilot": {"autopilot", "plant", "percentiles"},
     "lab": {"lab", "plant"},
     "netem": {"netem", "percentiles"},
+    "firmware": {"firmware", "plant"},
     "percentiles": set(),
-    "__main__": {"autopilot"},
+    "cli": {"autopilot", "firmware", "plant"},
+    "__main__": {"cli"},
     "__init__": set(),
 }
-"""sitl's parts (a package, or a file at its top) and the parts each may import: autopilot/ and
-lab/ both build on plant/ and never on each other; the relay knows no vehicle"""
+"""sitl's parts (a package, or a file at its top) and the parts each may import: autopilot/, lab/
+and firmware/ (a real autopilot flying the plant) all build on plant/ and never on each other; the
+relay knows no vehicle; the ``sitl`` command (cli) runs the bundled autopilot or a firmware"""
 
 
 def _part(module: str) -> str:

@@ -1,0 +1,73 @@
+"""When the world may advance while a companion flies the firmware: lockstep with the companion.
+
+The firmware already runs in lockstep with the plant (its clock is the plant's). What is left is
+the companion, a process of its own on the same host: if it stalls, the firmware would fly on
+without it. So, while a companion streams setpoints, the world runs only as far as its newest
+setpoint allows: each setpoint is stamped with the firmware time of the telemetry it was computed
+from (the companion's ``time_boot_ms``), and the world may run while the firmware's newest time,
+as its own telemetry says, is less than ``lead_s`` past that stamp — one control period, plus
+one telemetry interval so that the sample for the companion's next tick exists, plus a frame.
+
+A stream silent for ``give_up_wall_s`` of wall time while awake is gone, not late: time runs on
+(the firmware's own offboard-loss failsafe must be able to act), until a newer setpoint arrives.
+Pure: the bridge passes the clocks; :mod:`.relay` extracts the stamps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["CompanionGate"]
+
+
+@dataclass
+class CompanionGate:
+    lead_s: float
+    """how far past the newest setpoint's stamp the firmware may run [s]; 0: no lockstep"""
+    give_up_wall_s: float = 1.0
+    setpoint_stamp_s: float = math.nan
+    """firmware time of the telemetry the newest setpoint was computed from"""
+    firmware_now_s: float = math.nan
+    """the firmware's newest time, from its telemetry"""
+    _given_up_on: float = math.nan
+    _waiting_since_wall: float | None = None
+    _awake_s: float = 0.0
+    _checked_wall: float = 0.0
+    waits: int = 0
+    """times the world stopped for the companion"""
+    waited_s: float = 0.0
+    gave_up: int = 0
+
+    def setpoint(self, stamp_s: float) -> None:
+        """A setpoint arrived, computed from telemetry stamped ``stamp_s`` (0 or less: unstamped)."""
+        if stamp_s > 0.0 and not stamp_s < self.setpoint_stamp_s:
+            self.setpoint_stamp_s = stamp_s
+
+    def telemetry(self, stamp_s: float) -> None:
+        if stamp_s > 0.0 and not stamp_s < self.firmware_now_s:
+            self.firmware_now_s = stamp_s
+
+    def may_advance(self, wall_s: float) -> bool:
+        """Whether the world may take its next frame now (``wall_s``: a monotonic clock)."""
+        if self.lead_s <= 0.0 or math.isnan(self.setpoint_stamp_s) or self.setpoint_stamp_s == self._given_up_on:
+            return self._resume(wall_s)
+        if not self.firmware_now_s >= self.setpoint_stamp_s + self.lead_s:
+            return self._resume(wall_s)
+        if self._waiting_since_wall is None:
+            self._waiting_since_wall = self._checked_wall = wall_s
+            self._awake_s = 0.0
+            self.waits += 1
+        self._awake_s += min(wall_s - self._checked_wall, 0.02)  # a stall of the whole host is not the stream going
+        self._checked_wall = wall_s
+        if self._awake_s > self.give_up_wall_s:
+            self._given_up_on = self.setpoint_stamp_s
+            self.gave_up += 1
+            return self._resume(wall_s)
+        return False
+
+    def _resume(self, wall_s: float) -> bool:
+        if self._waiting_since_wall is not None:
+            self.waited_s += wall_s - self._waiting_since_wall
+            self._waiting_since_wall = None
+        return True

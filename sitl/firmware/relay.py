@@ -1,0 +1,209 @@
+"""The companion's link to the firmware, relayed through the bridge so that lockstep can see it.
+
+The firmware's companion port stays where users expect it (PX4: UDP to 14540, ArduPilot: TCP
+5760); the firmware itself is moved behind it (PX4's API link sends to the relay instead of 14540;
+ArduPilot's SERIAL0 serves another port) and every byte passes through unchanged, both ways. On
+the way the relay reads two things from MAVLink headers, never decoding or altering a frame: the
+``time_boot_ms`` of the companion's setpoints (SET_ATTITUDE_TARGET, SET_POSITION_TARGET_*) and the
+firmware's own time in its telemetry, for :class:`~.lockstep.CompanionGate`.
+"""
+
+from __future__ import annotations
+
+import socket
+import struct
+from collections.abc import Callable
+
+__all__ = ["frames", "stamps", "UdpRelay", "TcpRelay", "SETPOINTS", "CLOCKS_MS", "CLOCKS_US"]
+
+SETPOINTS = frozenset({82, 84, 86})
+"""SET_ATTITUDE_TARGET, SET_POSITION_TARGET_LOCAL_NED, SET_POSITION_TARGET_GLOBAL_INT: time_boot_ms first"""
+CLOCKS_MS = frozenset({30, 31, 32, 33})
+"""ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED, GLOBAL_POSITION_INT: time_boot_ms first"""
+CLOCKS_US = frozenset({105, 331})
+"""HIGHRES_IMU, ODOMETRY: time_usec first"""
+_U32 = struct.Struct("<I")
+_U64 = struct.Struct("<Q")
+
+
+def frames(buf: bytes | bytearray) -> tuple[list[tuple[int, bytes]], int]:
+    """The MAVLink frames at the start of ``buf`` as ``(msgid, payload)`` and how many bytes they
+    (and any garbage between them) take; an incomplete frame at the end is left."""
+    out = []
+    i, n = 0, len(buf)
+    while i < n:
+        magic = buf[i]
+        if magic == 0xFD:
+            if n - i < 10:
+                break
+            length, flags = buf[i + 1], buf[i + 2]
+            end = i + 12 + length + (13 if flags & 1 else 0)
+            if end > n:
+                break
+            msgid = buf[i + 7] | buf[i + 8] << 8 | buf[i + 9] << 16
+            out.append((msgid, bytes(buf[i + 10:i + 10 + length])))
+            i = end
+        elif magic == 0xFE:
+            if n - i < 6:
+                break
+            length = buf[i + 1]
+            end = i + 8 + length
+            if end > n:
+                break
+            out.append((buf[i + 5], bytes(buf[i + 6:i + 6 + length])))
+            i = end
+        else:
+            i += 1  # not a frame start: skip
+    return out, i
+
+
+def stamps(msgs: list[tuple[int, bytes]], kinds_ms: frozenset[int], kinds_us: frozenset[int] = frozenset()) -> float:
+    """The newest stamp [s] among ``msgs`` of the given kinds (time_boot_ms or time_usec first in
+    the payload; MAVLink 2 trims trailing zeros, so a short payload is padded); 0 if none."""
+    newest = 0.0
+    for msgid, payload in msgs:
+        if msgid in kinds_ms:
+            t = _U32.unpack((payload + b"\0\0\0\0")[:4])[0] * 1e-3
+        elif msgid in kinds_us:
+            t = _U64.unpack((payload + bytes(8))[:8])[0] * 1e-6
+        else:
+            continue
+        newest = max(newest, t)
+    return newest
+
+
+OnStamp = Callable[[float], None]
+
+
+class UdpRelay:
+    """UDP both ways: the firmware sends to ``firmware_side`` (bound here); what it sends goes on
+    to the companion at ``companion`` (PX4: 127.0.0.1:14540), and what comes back goes to the
+    firmware's address."""
+
+    def __init__(self, firmware_side: tuple[str, int], companion: tuple[str, int], on_setpoint: OnStamp,
+                 on_telemetry: OnStamp) -> None:
+        self.fw_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.fw_sock.bind(firmware_side)
+        self.fw_sock.setblocking(False)
+        self.co_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.co_sock.bind((firmware_side[0], 0))
+        self.co_sock.setblocking(False)
+        self.companion = companion
+        self.firmware_addr: tuple[str, int] | None = None
+        self.on_setpoint, self.on_telemetry = on_setpoint, on_telemetry
+        self.datagrams = {"down": 0, "up": 0, "dropped": 0}
+
+    def sockets(self) -> list[socket.socket]:
+        return [self.fw_sock, self.co_sock]
+
+    def readable(self, sock: socket.socket) -> None:
+        for _ in range(256):
+            try:
+                data, addr = sock.recvfrom(65535)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # ICMP port unreachable from an absent companion
+                self.datagrams["dropped"] += 1
+                continue
+            if sock is self.fw_sock:
+                self.firmware_addr = addr
+                t = stamps(frames(data)[0], CLOCKS_MS, CLOCKS_US)
+                if t:
+                    self.on_telemetry(t)
+                self._send(self.co_sock, data, self.companion, "down")
+            elif self.firmware_addr is not None:
+                t = stamps(frames(data)[0], SETPOINTS)
+                if t:
+                    self.on_setpoint(t)
+                self._send(self.fw_sock, data, self.firmware_addr, "up")
+
+    def _send(self, sock: socket.socket, data: bytes, to: tuple[str, int], way: str) -> None:
+        try:
+            sock.sendto(data, to)
+            self.datagrams[way] += 1
+        except OSError:  # nobody listening yet, or a full buffer: UDP drops it, so do we
+            self.datagrams["dropped"] += 1
+
+    def close(self) -> None:
+        for s in self.sockets():
+            s.close()
+
+
+class TcpRelay:
+    """TCP: companions connect to ``listen`` (ArduPilot's 5760); each gets its own connection to
+    the firmware at ``firmware``, bytes relayed both ways."""
+
+    def __init__(self, listen: tuple[str, int], firmware: tuple[str, int], on_setpoint: OnStamp,
+                 on_telemetry: OnStamp) -> None:
+        self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.server.bind(listen)
+        self.server.listen(4)
+        self.server.setblocking(False)
+        self.firmware = firmware
+        self.on_setpoint, self.on_telemetry = on_setpoint, on_telemetry
+        self.pairs: dict[socket.socket, socket.socket] = {}
+        self._bufs: dict[socket.socket, bytearray] = {}
+        self._up: set[socket.socket] = set()
+        self.bytes = {"down": 0, "up": 0}
+
+    def sockets(self) -> list[socket.socket]:
+        return [self.server, *self.pairs]
+
+    def readable(self, sock: socket.socket) -> None:
+        if sock is self.server:
+            self._accept()
+            return
+        try:
+            data = sock.recv(65536)
+        except (BlockingIOError, InterruptedError, TimeoutError):
+            return
+        except OSError:
+            data = b""
+        other = self.pairs.get(sock)
+        if not data or other is None:
+            self._drop(sock)
+            return
+        up = sock in self._up
+        buf = self._bufs[sock]
+        buf += data
+        msgs, used = frames(buf)
+        del buf[:used]
+        if len(buf) > 4096:  # never a frame: garbage
+            buf.clear()
+        t = stamps(msgs, SETPOINTS) if up else stamps(msgs, CLOCKS_MS, CLOCKS_US)
+        if t:
+            (self.on_setpoint if up else self.on_telemetry)(t)
+        try:
+            other.sendall(data)
+            self.bytes["up" if up else "down"] += len(data)
+        except OSError:
+            self._drop(sock)
+
+    def _accept(self) -> None:
+        try:
+            client, _ = self.server.accept()
+        except OSError:
+            return
+        fw = socket.create_connection(self.firmware, timeout=5.0)
+        for s in (client, fw):
+            s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            s.settimeout(2.0)  # recv only when select says so; sendall may wait for a full buffer
+            self._bufs[s] = bytearray()
+        self.pairs[client], self.pairs[fw] = fw, client
+        self._up.add(client)
+
+    def _drop(self, sock: socket.socket) -> None:
+        other = self.pairs.pop(sock, None)
+        for s in (sock, other):
+            if s is not None:
+                self.pairs.pop(s, None)
+                self._bufs.pop(s, None)
+                self._up.discard(s)
+                s.close()
+
+    def close(self) -> None:
+        for s in list(self.pairs):
+            s.close()
+        self.pairs.clear()
+        self.server.close()
