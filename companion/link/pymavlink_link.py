@@ -33,7 +33,7 @@ from .url import Endpoint, parse_endpoint
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
 from companion.mavlink import ftp
 from companion.mavlink.events import MSG_ID_EVENT, EventCatalogue, parse_event
-from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, decode_value, encode_value, param_name
+from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID, decode_value, encode_value, param_name
 from companion.mavlink.signing import SignatureCheck, describe_rejections, enable_signing, fingerprint
 from companion.mavlink.stream import SerialEndpoint, TcpEndpoint
 from companion.mavlink.udp import UdpEndpoint
@@ -92,6 +92,9 @@ class PymavlinkLink(VehicleLink):
         """one command in flight at a time: an ACK names only the command id, not the request"""
         self._params: dict[str, asyncio.Future[float]] = {}
         self._param_types: dict[str, int] = {}
+        self._param_owner: dict[str, int] = {}
+        """which component serves each parameter: the autopilot's, or the simulated plant's
+        (PLANT_COMPID, ``sitl --firmware``) for one the autopilot does not have"""
         self._highres_seen = False
         self._ftp_reply: asyncio.Future[ftp.Packet] | None = None
         self._ftp_lock = asyncio.Lock()
@@ -247,6 +250,9 @@ class PymavlinkLink(VehicleLink):
             if not self._connected.is_set():
                 self._connected.set()
             return
+        if st.sysid and src == st.sysid and comp == PLANT_COMPID and kind in ("PARAM_VALUE", "STATUSTEXT"):
+            self._plant_message(kind, msg)  # the simulated plant's own component (sitl --firmware)
+            return
         if st.sysid == 0 or src != st.sysid or comp != st.compid:
             # telemetry counts only from the autopilot's own component, not any component of its system
             self.stats["foreign_messages"] += 1
@@ -329,9 +335,30 @@ class PymavlinkLink(VehicleLink):
             if not self.params_complete and 0 < msg.param_count <= len(st.params):
                 self.params_complete = True
             self._param_types[name] = msg.param_type
+            self._param_owner[name] = st.compid
             fut = self._params.get(name)
             if fut is not None and not fut.done():
                 fut.set_result(value)
+
+    def _plant_message(self, kind: str, msg: Any) -> None:
+        """The plant's component: its SIM_* parameters (REAL32, never a name the autopilot has) and
+        what it says (an injected fault)."""
+        if kind == "STATUSTEXT":
+            self.state.add_text(msg.severity, msg.text)
+            return
+        name = param_name(msg.param_id)
+        if name not in self._param_owner and len(self._param_owner) >= MAX_PARAMS:
+            self.stats["params_dropped"] += 1
+            return
+        if self._param_owner.get(name) == self.state.compid:
+            return  # the autopilot's parameter: never the plant's
+        self._param_owner[name] = PLANT_COMPID
+        self._param_types[name] = MAV_PARAM_TYPE_REAL32
+        value = float(msg.param_value)
+        self.state.params[name] = value
+        fut = self._params.get(name)
+        if fut is not None and not fut.done():
+            fut.set_result(value)
 
     # --- connection ----------------------------------------------------------------------
 
@@ -563,19 +590,28 @@ class PymavlinkLink(VehicleLink):
         return None
 
     async def get_param(self, name: str, timeout_s: float = 1.0, retries: int = 3) -> float | None:
-        target = (self.state.sysid or 1, self.state.compid or 1)
-        return await self._param(name, lambda: self._send(
-            self.mav.param_request_read_encode(*target, name.encode("ascii"), -1)), timeout_s, retries)
+        """The parameter's value from whichever component serves it: asked of the autopilot and,
+        until its owner is known, of a simulated plant's component too (the first answer wins;
+        the plant never serves a name the autopilot has)."""
+        sysid = self.state.sysid or 1
+        owner = self._param_owner.get(name)
+        targets = [owner] if owner is not None else [self.state.compid or 1, PLANT_COMPID]
+
+        def ask() -> None:
+            for compid in targets:
+                self._send(self.mav.param_request_read_encode(sysid, compid, name.encode("ascii"), -1))
+        return await self._param(name, ask, timeout_s, retries)
 
     async def set_param(self, name: str, value: float) -> float:
         """Set in the parameter's own type (known from a read: PX4 refuses a REAL32 write to an
         integer parameter, and encodes integers bytewise)."""
-        target = (self.state.sysid or 1, self.state.compid or 1)
         if name not in self._param_types and await self.get_param(name) is None:
             raise LinkError(f"parameter {name}: the autopilot has no such parameter")
+        owner = self._param_owner.get(name, self.state.compid or 1)
+        target = (self.state.sysid or 1, owner)
         ptype = self._param_types.get(name, MAV_PARAM_TYPE_REAL32)
         try:
-            wire = encode_value(value, ptype, bytewise=self.flavour is PX4)
+            wire = encode_value(value, ptype, bytewise=self.flavour is PX4 and owner != PLANT_COMPID)
         except ValueError as exc:
             raise LinkError(f"parameter {name}: {exc}") from None
         echoed = await self._param(name, lambda: self._send(self.mav.param_set_encode(

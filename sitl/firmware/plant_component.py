@@ -38,11 +38,12 @@ ORIGIN_INTERVAL_S = 2.0
 
 
 class PlantComponent:
-    def __init__(self, vehicle: SimVehicle, origin: GeoOrigin, sysid: int = 1, set_origin: bool = True) -> None:
+    def __init__(self, vehicle: SimVehicle, origin: GeoOrigin, set_origin: bool = True) -> None:
         self.vehicle = vehicle
         self.origin = origin
-        self.sysid = sysid
-        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=PLANT_COMPID)
+        self.sysid = 0
+        """the vehicle's system id: the firmware's, learnt from its first heartbeat"""
+        self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=PLANT_COMPID)
         self.mav.robust_parsing = True
         self.texts: list[str] = []
         """what the plant said (injected faults)"""
@@ -69,7 +70,9 @@ class PlantComponent:
         out: list[bytes] = []
         for m in msgs:
             kind = m.get_type()
-            if m.get_srcSystem() == self.sysid and m.get_srcComponent() == 1:
+            if not self.sysid and kind == "HEARTBEAT" and m.get_srcComponent() == 1:
+                self.sysid = self.mav.srcSystem = m.get_srcSystem()
+            if self.sysid and m.get_srcSystem() == self.sysid and m.get_srcComponent() == 1:
                 self.firmware_seen = True
                 if kind == "PARAM_VALUE" and self.params is None:
                     self.shadowed.add(param_name(m.param_id))
@@ -137,6 +140,8 @@ class PlantComponent:
         the EKF origin."""
         out: list[bytes] = []
         mav = self.mav
+        if not self.sysid:
+            return out
         if t_s >= self._next_heartbeat_s:
             self._next_heartbeat_s = t_s + 1.0
             out.append(mav.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
