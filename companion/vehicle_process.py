@@ -17,9 +17,10 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["VehicleProcess"]
+__all__ = ["VehicleProcess", "FirmwareVehicle"]
 
 _LISTENING = re.compile(r"listening on udp://([\d.]+):(\d+)")
+_FIRMWARE = re.compile(r"flying the plant .*: companion (\S+?)[,;]")
 
 
 class VehicleProcess:
@@ -82,3 +83,36 @@ class VehicleProcess:
         if self.alive():
             self.proc.kill()
             self.proc.wait()
+
+
+class FirmwareVehicle(VehicleProcess):
+    """A real autopilot's SITL build flying the plant (``python -m sitl --firmware px4|ardupilot``):
+    the same harness, the companion's URL read from the banner (PX4: ``udpin://0.0.0.0:14540+N``,
+    ArduCopter: ``tcp://127.0.0.1:5760+10N``)."""
+
+    def __init__(self, firmware: str, *args: str, speedup: float = 4.0, lockstep_ms: float = 10.0,
+                 instance: int = 0, env: dict[str, str] | None = None, cwd: Path | None = None,
+                 own_session: bool = True) -> None:
+        self.speedup = speedup
+        cmd = [sys.executable, "-m", "sitl", "--firmware", firmware, "--instance", str(instance),
+               "--speedup", f"{speedup:g}", *(("--lockstep", f"{lockstep_ms:g}") if lockstep_ms else ()), *args]
+        child_env = {k: v for k, v in os.environ.items() if k != "MAVLINK_SIGNING_KEY"} if env is None else env
+        self.proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     env={**child_env, "PYTHONUNBUFFERED": "1"}, start_new_session=own_session)
+        self.banner = []
+        self.port = 0
+        self.report = None
+        while True:
+            line = self.proc.stdout.readline()  # type: ignore[union-attr]
+            self.banner.append(line)
+            found = _FIRMWARE.search(line)
+            if found:
+                self.companion_url = found.group(1)
+                break
+            if not line or len(self.banner) > 5:
+                rest = self.proc.communicate(timeout=10)[0]
+                raise RuntimeError(f"the firmware did not start: {''.join(self.banner)}{rest}")
+
+    @property
+    def url(self) -> str:
+        return self.companion_url

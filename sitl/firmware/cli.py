@@ -27,7 +27,7 @@ from companion.control.params import VehicleParams
 from sitl.plant.geo import GeoOrigin
 from sitl.plant.nav_sensors import NavSensorParams
 from sitl.plant.parameters import build_plant_parameters
-from sitl.plant.scenario import Scenario, load_scenario
+from sitl.plant.scenario import Scenario
 
 from .airframe import ardupilot_parameters, px4_parameters
 from .ardupilot import ArduPilotBridge, ArduPilotPorts, ArduPilotProcess
@@ -60,6 +60,9 @@ def add_firmware_options(ap: argparse.ArgumentParser) -> None:
                          "paper's laboratory, default) or GNSS")
     ap.add_argument("--instance", type=int, default=0, help="firmware instance N: its ports move by N (PX4) or 10 N "
                                                             "(ArduCopter)")
+    ap.add_argument("--firmware-param", action="append", default=[], metavar="NAME=VALUE",
+                    help="set one of the firmware's own parameters at boot, on top of the airframe "
+                         "(e.g. MPC_TILTMAX_AIR=60; repeatable)")
 
 
 def firmware_scenario(scenario: Scenario, layout: str | None, position_source: str | None) -> Scenario:
@@ -77,7 +80,8 @@ class Session:
 
     def __init__(self, firmware: str, build: Path, scenario: Scenario, seed: int, origin: GeoOrigin,
                  speedup: float, lockstep_period_s: float, instance: int = 0,
-                 params: list[tuple[str, float]] | None = None, keep_workdir: bool = False) -> None:
+                 params: list[tuple[str, float]] | None = None, keep_workdir: bool = False,
+                 firmware_params: dict[str, float] | None = None) -> None:
         self.firmware = firmware
         self.keep_workdir = keep_workdir
         self.workdir = Path(tempfile.mkdtemp(prefix=f"ismdo-{firmware}-"))
@@ -100,7 +104,7 @@ class Session:
                                                   gate.setpoint, gate.telemetry)
             plant = PlantSocket(ports.plant, ("127.0.0.1", ports.plant_firmware))
             self.bridge = Px4Bridge(world, component, plant, relay, gate, pace, ports=ports, vision=vision)
-            self.process = Px4Process(build, ports, px4_parameters(scenario), self.workdir)
+            self.process = Px4Process(build, ports, px4_parameters(scenario) | (firmware_params or {}), self.workdir)
             self.ports: dict[str, str] = {
                 "companion": f"udpin://0.0.0.0:{ports.companion}", "ground station": f"udp 14550 (from {ports.gcs})",
                 "simulator": f"tcp 127.0.0.1:{ports.simulator}"}
@@ -111,7 +115,8 @@ class Session:
             plant = PlantSocket(aports.plant)
             self.bridge = ArduPilotBridge(world, component, plant, relay, gate, pace, ports=aports, vision=vision)
             home = f"{origin.lat_deg},{origin.lon_deg},{origin.alt_m},0"
-            self.process = ArduPilotProcess(build, aports, ardupilot_parameters(scenario), self.workdir, home)
+            self.process = ArduPilotProcess(build, aports, ardupilot_parameters(scenario) | (firmware_params or {}),
+                                            self.workdir, home)
             self.ports = {"companion": f"tcp://127.0.0.1:{aports.companion}",
                           "simulator": f"udp 127.0.0.1:{aports.json} (JSON)"}
         self.process.start()
@@ -150,8 +155,9 @@ def run(args: argparse.Namespace, scenario: Scenario, origin: GeoOrigin) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, on_signal)
     try:
+        firmware_params = dict(parse_firmware_param(text) for text in args.firmware_param)
         session = Session(args.firmware, build, scenario, args.seed, origin, args.speedup,
-                          args.lockstep * 1e-3, args.instance, args.param)
+                          args.lockstep * 1e-3, args.instance, args.param, firmware_params=firmware_params)
     except (OSError, ValueError) as exc:
         print(f"sitl: error: {exc}", file=sys.stderr)
         return 2
@@ -174,5 +180,15 @@ def run(args: argparse.Namespace, scenario: Scenario, origin: GeoOrigin) -> int:
     return 0
 
 
-def load(args: argparse.Namespace) -> Scenario:
-    return load_scenario(args.scenario) if args.scenario else Scenario(name="sitl")
+def parse_firmware_param(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    if not sep or not name or len(name) > 16 or not name.replace("_", "").isalnum():
+        raise ValueError(f"--firmware-param {text!r}: expected NAME=NUMBER")
+    try:
+        number = float(value)
+    except ValueError:
+        raise ValueError(f"--firmware-param {text!r}: {value!r} is not a number") from None
+    if number != number or number in (float("inf"), float("-inf")):
+        raise ValueError(f"--firmware-param {text!r}: not a finite number")
+    return name, number

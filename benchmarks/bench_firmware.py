@@ -1,0 +1,157 @@
+"""The paper's experiments on the real firmware: PX4 v1.16 and ArduCopter fly the project's plant
+(``sitl --firmware``, lockstep) with the paper's disturbances, under the companion's ISM+DO, PD+DO
+and PID and under the autopilot's own position control (``--controller autopilot``: the same
+reference as position targets), same plant, seeds and disturbance.
+
+    python benchmarks/bench_firmware.py [--firmware px4 ardupilot] [--seeds 1 2 3] [--out docs]
+
+Experiments (missions/): ``hover45`` — the 6 N weight attached for 20 s (the 45 deg hover), then
+released (E5, Fig. 10); ``step`` — a 2 N step for 7 s (E1, Fig. 6); ``wind`` — hover in 3 m/s
+wind with 0.6 m/s turbulence (E3, Fig. 8b); ``square`` — the 4 m square at 2 m/s in a constant
+3 m/s wind. One boot per flight. Prints a markdown table (medians over the seeds of each
+segment's RMS and peak position error) and draws docs/figures/firmware_experiments.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from companion.plots import load_timeseries  # noqa: E402
+from companion.vehicle_process import FirmwareVehicle  # noqa: E402
+from sitl.firmware.builds import arducopter_binary, px4_build  # noqa: E402
+
+EXPERIMENTS = {
+    "hover45": ("missions/hover45.toml", ("45 deg hover", "after release")),
+    "step": ("missions/step_force.toml", ("force on", "released")),
+    "wind": ("missions/wind_hover.toml", ("hover in wind",)),
+    "square": ("missions/square_wind.toml", ("square",)),
+}
+CONTROLLERS = ("ism_do", "pd_do", "pid", "autopilot")
+LABELS = {"ism_do": "ISM+DO", "pd_do": "PD+DO", "pid": "PID", "autopilot": "autopilot's own"}
+TILT_PARAM = {"px4": "MPC_TILTMAX_AIR", "ardupilot": "ATC_ANGLE_MAX"}
+
+
+def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float, out: Path,
+        firmware_params: dict[str, float]) -> Path:
+    args = [f"--seed={seed}", *(f"--firmware-param={k}={v:g}" for k, v in firmware_params.items())]
+    vehicle = FirmwareVehicle(firmware, *args, speedup=speedup, instance=7)
+    try:
+        r = subprocess.run([sys.executable, "-m", "companion", "fly", str(ROOT / mission), "--connect", vehicle.url,
+                            "--controller", controller, "--out", str(out), "--no-plots", "--quiet",
+                            "--connect-timeout", "120"], capture_output=True, text=True, timeout=900, cwd=ROOT)
+    finally:
+        vehicle.stop(timeout_s=30)
+    folder = Path(r.stdout.strip().rsplit(" -> ", 1)[-1]) if " -> " in r.stdout else None
+    if r.returncode != 0 or folder is None:
+        raise RuntimeError(f"{firmware} {mission} {controller} seed {seed}: {r.stdout[-2000:]}{r.stderr[-2000:]}")
+    return folder
+
+
+def segments(folder: Path, names: tuple[str, ...]) -> dict[str, dict]:
+    data = json.loads((folder / "segments.json").read_text())
+    return {s["name"]: s for s in data["segments"] if s["name"] in names}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--firmware", nargs="+", default=["px4", "ardupilot"], choices=["px4", "ardupilot"])
+    ap.add_argument("--experiments", nargs="+", default=list(EXPERIMENTS), choices=list(EXPERIMENTS))
+    ap.add_argument("--controllers", nargs="+", default=list(CONTROLLERS), choices=list(CONTROLLERS))
+    ap.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3])
+    ap.add_argument("--speedup", type=float, default=20.0, help="upper bound; lockstep sets the pace")
+    ap.add_argument("--tilt", type=float, default=0.0,
+                    help="also fly the autopilot's own control with its tilt limit raised to this [deg] "
+                         "(PX4 MPC_TILTMAX_AIR, ArduCopter ATC_ANGLE_MAX; default: only their defaults)")
+    ap.add_argument("--out", default=str(ROOT / "docs"))
+    args = ap.parse_args()
+    work = Path(tempfile.mkdtemp(prefix="bench-firmware-"))
+    found = {"px4": px4_build()[0], "ardupilot": arducopter_binary()[0]}
+    results: dict[tuple[str, str, str], list[dict[str, dict]]] = {}
+    folders: dict[tuple[str, str, str], Path] = {}
+    t0 = time.monotonic()
+    for firmware in args.firmware:
+        if found[firmware] is None:
+            print(f"skipped {firmware}: {(px4_build if firmware == 'px4' else arducopter_binary)()[1]}")
+            continue
+        variants = [(c, {}) for c in args.controllers]
+        if args.tilt and "autopilot" in args.controllers:
+            variants.append((f"autopilot_tilt{args.tilt:g}", {TILT_PARAM[firmware]: args.tilt}))
+        for experiment in args.experiments:
+            mission, names = EXPERIMENTS[experiment]
+            for controller, params in variants:
+                for seed in args.seeds:
+                    folder = fly(firmware, mission, controller.split("_tilt")[0], seed, args.speedup,
+                                 work / firmware / experiment, params)
+                    key = (firmware, experiment, controller)
+                    results.setdefault(key, []).append(segments(folder, names))
+                    folders.setdefault(key, folder)
+                    seg = results[key][-1]
+                    print(f"{firmware} {experiment} {controller} seed {seed}: " + "; ".join(
+                        f"{n} RMS {s['rms_error_m']:.3f} peak {s['peak_error_m']:.3f} m, tilt {s['peak_tilt_deg']:.0f}"
+                        for n, s in seg.items()), flush=True)
+    print(f"\n{len(args.seeds)} seed(s) per cell, medians; one boot per flight; {time.monotonic() - t0:.0f} s wall\n")
+    print("| firmware | experiment | segment | controller | RMS [m] | peak [m] | peak tilt [deg] | "
+          "RMS / autopilot's | peak / autopilot's |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for (firmware, experiment, controller), runs in results.items():
+        base = results.get((firmware, experiment, "autopilot"))
+        for name in EXPERIMENTS[experiment][1]:
+            rms = statistics.median(r[name]["rms_error_m"] for r in runs)
+            peak = statistics.median(r[name]["peak_error_m"] for r in runs)
+            tilt = statistics.median(r[name]["peak_tilt_deg"] for r in runs)
+            ratio = ""
+            if base is not None and controller != "autopilot":
+                b_rms = statistics.median(r[name]["rms_error_m"] for r in base)
+                b_peak = statistics.median(r[name]["peak_error_m"] for r in base)
+                ratio = f"{rms / b_rms:.2f} | {peak / b_peak:.2f}"
+            else:
+                ratio = "- | -"
+            label = LABELS.get(controller, controller.replace("autopilot_tilt", "autopilot's own, tilt ") + " deg")
+            print(f"| {firmware} | {experiment} | {name} | {label} | {rms:.3f} | {peak:.3f} | {tilt:.0f} | {ratio} |")
+    if folders:
+        draw(folders, args, Path(args.out) / "figures" / "firmware_experiments.png")
+    return 0
+
+
+def draw(folders: dict[tuple[str, str, str], Path], args: argparse.Namespace, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [(f, e) for f in args.firmware for e in args.experiments if any(k[:2] == (f, e) for k in folders)]
+    fig, axs = plt.subplots(len(rows), 1, figsize=(9, 2.6 * len(rows)), squeeze=False)
+    colours = {"ism_do": "tab:blue", "pd_do": "tab:green", "pid": "tab:red", "autopilot": "tab:orange"}
+    for ax, (firmware, experiment) in zip(axs[:, 0], rows):
+        for (f, e, controller), folder in folders.items():
+            if (f, e) != (firmware, experiment):
+                continue
+            d = load_timeseries(folder)
+            flying = d["offboard"] == 1
+            t = d["t"][flying]
+            ax.plot(t - t[0], d["error_m"][flying], lw=0.8, color=colours.get(controller, "tab:gray"),
+                    label=LABELS.get(controller, controller))
+        ax.set_title(f"{firmware}: {experiment} (seed {args.seeds[0]})", fontsize=9)
+        ax.set_ylabel("position error [m]")
+        ax.set_yscale("log")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=4)
+    axs[-1, 0].set_xlabel("time in offboard [s]")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    print(f"\nfigure: {path}")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
