@@ -33,6 +33,7 @@ from mavsdk.plugins.mavlink_direct import MavlinkMessage
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.link.clock import VehicleClock
+from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID
 from companion.link.stamps import StampGate
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
@@ -81,6 +82,10 @@ class MavsdkLink(VehicleLink):
         self._sdk: Mavsdk | None = None
         self._tap: asyncio.DatagramTransport | None = None
         self._system: Any = None
+        self._plant_waiting: dict[str, asyncio.Future[float]] = {}
+        self._plant_params: set[str] = set()
+        self._plant_heard = False
+        """parameters the simulated plant's component serves (``sitl --firmware``)"""
         self._outbox: asyncio.Queue[MavlinkMessage] = asyncio.Queue(maxsize=4)
         # what we send through MavlinkDirect never reaches the tap: encode it for the log ourselves
         self._log_mav = mavlink.MAVLink(None, srcSystem=245, srcComponent=190)
@@ -140,7 +145,7 @@ class MavsdkLink(VehicleLink):
             async with asyncio.TaskGroup() as tg:
                 for coro in (self._attitude(), self._rates(), self._position(), self._imu(), self._mode(),
                              self._armed(), self._landed(), self._texts(), self._events(), self._health(),
-                             self._sender()):
+                             self._sender(), self._plant_values(), self._plant_heartbeats()):
                     tg.create_task(coro)
                 await stop.wait()
                 raise _Stop()
@@ -325,12 +330,77 @@ class MavsdkLink(VehicleLink):
         self._outbox.put_nowait(msg)
 
     async def get_param(self, name: str, timeout_s: float = 1.0, retries: int = 3) -> float | None:
+        """From the autopilot or, once a simulated plant's own component (PLANT_COMPID, ``sitl
+        --firmware``) has been heard, from the plant first: it never serves the autopilot's names
+        (MAVSDK's parameter plugin may take the plant's PARAM_VALUE, which the firmware forwards,
+        for the autopilot's)."""
+        if self._plant_heard:
+            value = await self._plant_param(name, None, 0.5, 2)
+            if value is not None:
+                self._plant_params.add(name)
+                return value
         try:
             return float(await self.param.get_param_float(name))
         except Exception:
             return None
 
+    async def _plant_param(self, name: str, value: float | None, timeout_s: float = 1.0,
+                           retries: int = 3) -> float | None:
+        """PARAM_REQUEST_READ (``value`` None) or PARAM_SET of the plant's component, through
+        MavlinkDirect (MAVSDK's parameter plugin serves the autopilot); its PARAM_VALUE."""
+        sysid = self.state.sysid or 1
+        fields = {"target_system": sysid, "target_component": PLANT_COMPID, "param_id": name}
+        if value is None:
+            kind, fields = "PARAM_REQUEST_READ", fields | {"param_index": -1}
+        else:
+            kind, fields = "PARAM_SET", fields | {"param_value": float(value), "param_type": MAV_PARAM_TYPE_REAL32}
+        msg = MavlinkMessage(message_name=kind, system_id=245, component_id=190, target_system_id=sysid,
+                             target_component_id=PLANT_COMPID, fields_json=json.dumps(fields))
+        fut: asyncio.Future[float] = asyncio.get_running_loop().create_future()
+        self._plant_waiting[name] = fut
+        try:
+            for _ in range(retries):
+                try:
+                    await self.direct.send_message(msg)
+                except Exception:
+                    return None
+                try:
+                    return await asyncio.wait_for(asyncio.shield(fut), timeout_s)
+                except TimeoutError:
+                    continue
+            return None
+        finally:
+            self._plant_waiting.pop(name, None)
+
+    async def _plant_heartbeats(self) -> None:
+        async for m in self.direct.subscribe_message("HEARTBEAT"):
+            if m.component_id == PLANT_COMPID and m.system_id == self.state.sysid:
+                self._plant_heard = True
+                return
+
+    async def _plant_values(self) -> None:
+        """PARAM_VALUE from the plant's component, for :meth:`_plant_param`."""
+        async for m in self.direct.subscribe_message("PARAM_VALUE"):
+            if m.component_id != PLANT_COMPID or m.system_id != self.state.sysid:
+                continue
+            try:
+                fields = json.loads(m.fields_json)
+                name, value = str(fields["param_id"]), float(fields["param_value"])
+            except (ValueError, KeyError, TypeError):
+                self.stats["bad_plant_params"] += 1
+                continue
+            fut = self._plant_waiting.get(name)
+            if fut is not None and not fut.done():
+                fut.set_result(value)
+
     async def set_param(self, name: str, value: float) -> float:
+        if name not in self._plant_params and await self.get_param(name) is None:
+            raise LinkError(f"parameter {name}: the autopilot has no such parameter")
+        if name in self._plant_params:
+            echoed = await self._plant_param(name, value)
+            if echoed is None:
+                raise LinkError(f"parameter {name} was not acknowledged")
+            return echoed
         try:
             await self.param.set_param_float(name, float(value))
         except Exception as exc:

@@ -171,6 +171,11 @@ class Bridge:
                 next_tick = world.t + 0.05
                 self.plant.send(self.component.tick(world.t))
                 self.plant.send(self.component.said())
+                if self.component.heartbeat is not None:
+                    # the firmware's forwarding may drop it (PX4 keeps two forwarded messages a
+                    # link): the companion hears of the plant directly
+                    self.relay.inject(self.component.heartbeat)
+                    self.component.heartbeat = None
 
     def close(self) -> None:
         self.relay.close()

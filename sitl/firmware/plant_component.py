@@ -31,6 +31,7 @@ from sitl.plant.vehicle import SimVehicle
 
 __all__ = ["PlantComponent"]
 
+SIM_NAMES = frozenset(row.name for row in SIM_ROWS)
 PROBE_TRIES = 3
 PROBE_INTERVAL_S = 0.5
 """simulated seconds between asks of the firmware for the plant's names"""
@@ -57,6 +58,8 @@ class PlantComponent:
         self.origin_set = not set_origin
         self._next_origin_s = 5.0
         self.firmware_seen = False
+        self.heartbeat: bytes | None = None
+        """the newest heartbeat, until the bridge has passed it on to the companion's link"""
         self.stats = {"param_set": 0, "param_refused": 0, "param_read": 0, "param_list": 0}
 
     # --- in ---------------------------------------------------------------------------------
@@ -74,7 +77,7 @@ class PlantComponent:
                 self.sysid = self.mav.srcSystem = m.get_srcSystem()
             if self.sysid and m.get_srcSystem() == self.sysid and m.get_srcComponent() == 1:
                 self.firmware_seen = True
-                if kind == "PARAM_VALUE" and self.params is None:
+                if kind == "PARAM_VALUE" and self.params is None and param_name(m.param_id) in SIM_NAMES:
                     self.shadowed.add(param_name(m.param_id))
                 elif kind == "GPS_GLOBAL_ORIGIN":
                     self.origin_set = True
@@ -144,8 +147,9 @@ class PlantComponent:
             return out
         if t_s >= self._next_heartbeat_s:
             self._next_heartbeat_s = t_s + 1.0
-            out.append(mav.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
-                                            mavlink.MAV_STATE_ACTIVE).pack(mav))
+            self.heartbeat = mav.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                  mavlink.MAV_STATE_ACTIVE).pack(mav)
+            out.append(self.heartbeat)
         if self.params is None and self.firmware_seen and t_s >= self._next_probe_s:
             if self._probes < PROBE_TRIES:
                 self._probes += 1

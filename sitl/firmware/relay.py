@@ -117,6 +117,11 @@ class UdpRelay:
                     self.on_setpoint(t)
                 self._send(self.fw_sock, data, self.firmware_addr, "up")
 
+    def inject(self, data: bytes) -> None:
+        """A datagram of the bridge's own (the plant component's heartbeat) to the companion."""
+        if self.firmware_addr is not None:
+            self._send(self.co_sock, data, self.companion, "down")
+
     def _send(self, sock: socket.socket, data: bytes, to: tuple[str, int], way: str) -> None:
         try:
             sock.sendto(data, to)
@@ -145,6 +150,7 @@ class TcpRelay:
         self.pairs: dict[socket.socket, socket.socket] = {}
         self._bufs: dict[socket.socket, bytearray] = {}
         self._up: set[socket.socket] = set()
+        self._pending: dict[socket.socket, bytes] = {}
         self.bytes = {"down": 0, "up": 0}
 
     def sockets(self) -> list[socket.socket]:
@@ -168,17 +174,27 @@ class TcpRelay:
         buf = self._bufs[sock]
         buf += data
         msgs, used = frames(buf)
+        whole = bytes(buf[:used])
         del buf[:used]
-        if len(buf) > 4096:  # never a frame: garbage
+        if len(buf) > 4096:  # never a frame: garbage, passed on as it came
+            whole += bytes(buf)
             buf.clear()
         t = stamps(msgs, SETPOINTS) if up else stamps(msgs, CLOCKS_MS, CLOCKS_US)
         if t:
             (self.on_setpoint if up else self.on_telemetry)(t)
+        if not up:
+            whole += self._pending.pop(other, b"")  # between whole frames
         try:
-            other.sendall(data)
-            self.bytes["up" if up else "down"] += len(data)
+            other.sendall(whole)
+            self.bytes["up" if up else "down"] += len(whole)
         except OSError:
             self._drop(sock)
+
+    def inject(self, data: bytes) -> None:
+        """Bytes of the bridge's own (the plant component's heartbeat) to each companion, between
+        whole frames (the firmware's bytes are relayed as they come and may end inside a frame)."""
+        for client in [s for s in self._up if s in self.pairs]:
+            self._pending[client] = self._pending.get(client, b"") + data
 
     def _accept(self) -> None:
         try:
@@ -199,6 +215,7 @@ class TcpRelay:
             if s is not None:
                 self.pairs.pop(s, None)
                 self._bufs.pop(s, None)
+                self._pending.pop(s, None)
                 self._up.discard(s)
                 s.close()
 
