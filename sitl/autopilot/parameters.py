@@ -22,7 +22,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
-from ..plant.parameters import D, XYZ, Param, ParamTable, PlantBinding, Row, SIM_ROWS, bind_rows
+from ..plant.parameters import (D, SIM_ROWS, THRUST_MAX_ROW, XYZ, Param, ParamTable, PlantBinding, Row,
+                                bind_rows)
 from .logic import Autopilot, Severity
 
 __all__ = ["Row", "Param", "ParamTable", "build_parameters", "CONTROLLER_ROWS", "markdown_table", "PX4_ROWS",
@@ -42,8 +43,7 @@ PX4_ROWS: tuple[Row, ...] = (
     Row("COM_DISARM_LAND", "autopilot.disarm_land_s", 0.0, 60.0, "s", "disarm after touch-down"),
     Row("MPC_THR_HOVER", "derived.hover_thrust", 0.0, 1.0, "", "hover thrust, normalised (m g / T_max)",
         read_only=True),
-    Row("SIM_THRUST_MAX", "scenario.vehicle.thrust_max_n", 0.0, 1e3, "N", "thrust at normalised 1.0",
-        read_only=True),
+    THRUST_MAX_ROW,
 )
 
 ARDUPILOT_ROWS: tuple[Row, ...] = (

@@ -46,15 +46,17 @@ class Px4Wire:
         self.mav.robust_parsing = True
 
     def frame(self, f: SensorFrame, vision: bool) -> list[bytes]:
-        """The datagrams for one frame: HIL_SENSOR, then a GNSS fix and tracking samples if any
-        (tracking samples only with ``vision``: the firmware positions by external vision)."""
+        """The datagrams for one frame: HIL_SENSOR, then the tracking samples delivered during it
+        (``vision``: the firmware positions by external vision; the paper's laboratory has no
+        GNSS, and a fix beside it made PX4 v1.16 move its height origin by the field's altitude
+        after a landing) or else the GNSS fix, if one is due."""
         mav = self.mav
         t_us = int(round(f.t_s * 1e6))
         a, g, m, b = f.accel_m_s2, f.gyro_rad_s, f.mag_gauss, f.baro
         out = [mav.hil_sensor_encode(t_us, a[0], a[1], a[2], g[0], g[1], g[2], m[0], m[1], m[2],
                                      b.pressure_pa * 0.01, 0.0, b.altitude_m, b.temperature_c,
                                      ACCEL | GYRO | MAG | BARO, 0).pack(mav)]
-        if f.gnss is not None:
+        if f.gnss is not None and not vision:
             fix = f.gnss
             v = fix.vel_ned_m_s
             speed = math.hypot(v[0], v[1])

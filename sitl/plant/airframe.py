@@ -38,3 +38,7 @@ class AirframeParams:
     """centre of mass relative to the rotors' geometric centre, FRD (a badly placed battery)"""
     ground_z_m: float = 0.0
     """NED height of the ground; the vehicle rests on it when thrust is below weight"""
+    ground_decel_m_s2: float = 50.0
+    """the most the ground decelerates a vehicle that reaches it (5 g: landing gear and foam spread
+    a touchdown at 0.7 m/s over 14 ms and 5 mm; an instant stop would be a 70 g spike no MEMS
+    accelerometer reports, and an estimator that missed it would keep descending)"""

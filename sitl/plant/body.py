@@ -37,6 +37,7 @@ class PlantConst(NamedTuple):
     center_of_mass_offset_m: Vec3
     ground_z_m: float
     weight_n: float
+    ground_decel_m_s2: float
 
 
 class RigidBody(NamedTuple):
@@ -70,7 +71,7 @@ def plant_const(vehicle: object, airframe: object, dt_s: float) -> PlantConst:
         RotorModel.of(v), 1.0 - math.exp(-dt_s / af.rotor_time_constant_s),  # type: ignore[arg-type, attr-defined]
         tuple(float(e) for e in af.motor_efficiency), af.drag_linear_n_s_m,  # type: ignore[arg-type, attr-defined]
         float(af.drag_quadratic_n_s2_m2), af.center_of_pressure_m, af.center_of_mass_offset_m,  # type: ignore[attr-defined]
-        float(af.ground_z_m), float(v.weight_n))  # type: ignore[attr-defined]
+        float(af.ground_z_m), float(v.weight_n), float(af.ground_decel_m_s2))  # type: ignore[attr-defined]
 
 
 @jitable
@@ -145,27 +146,35 @@ def plant_step(c: PlantConst, s: RigidBody, rotor_cmd_rad_s: Rotors4, wind_ned_m
     )
     q = quat.integrate(q, om, dt_s)
     if not is_scalar(pos[2]) or pos[2] >= c.ground_z_m:  # a batch: element-wise, whoever is down
-        pos, vel, q, om, sf_body = _ground_contact(c, pos, vel, q, om, sf_body, thrust)
+        pos, vel, q, om, sf_body = _ground_contact(c, pos, vel, q, om, sf_body, thrust, rot, dt_s)
     return (RigidBody(pos, vel, q, om, (w1, w2, w3, w4)),
             Forces(sf_body, thrust, (t_rx, t_ry, t_rz), (hx, hy, hz), torque_dist))
 
 
 @jitable
 def _ground_contact(c: PlantConst, pos: Vec3, vel: Vec3, q: Quat, om: Vec3, sf_body: Vec3,
-                    thrust: Real) -> tuple[Vec3, Vec3, Quat, Vec3, Vec3]:
-    """The ground holds the vehicle up: at or below ground level it cannot sink further; with
-    thrust under the weight it rests, level, at its yaw, without horizontal motion or rates; a
-    ground reaction replaces the missing lift in the specific force. Element-wise for a batch."""
+                    thrust: Real, rot: object, dt_s: float) -> tuple[Vec3, Vec3, Quat, Vec3, Vec3]:
+    """The ground holds the vehicle up. A body that reaches it sinking is decelerated at up to
+    ``ground_decel_m_s2`` (it sinks a few millimetres meanwhile) and put back on the surface once
+    stopped; with thrust under the weight it rests, level, at its yaw, without horizontal motion
+    or rates. The accelerometer feels what the ground did: the change of velocity it imposed in
+    the step, ``R^T dv / dt``, on top of the other forces — at rest that is the reaction that
+    replaces the missing lift (``-g`` along z_B), at a touchdown the deceleration that stopped
+    the descent. Element-wise for a batch."""
     ground = c.ground_z_m
     below = pos[2] >= ground
     resting = below & (thrust < c.weight_n)
-    pos = (pos[0], pos[1], where(below, ground, pos[2]))
-    vz = where(below, where(vel[2] > 0.0, 0.0, vel[2]), vel[2])
-    vel = (where(resting, 0.0, vel[0]), where(resting, 0.0, vel[1]), vz)
+    vz_free = vel[2]
+    slowed = vz_free - c.ground_decel_m_s2 * dt_s
+    vz = where(below & (vz_free > 0.0), where(slowed > 0.0, slowed, 0.0), vz_free)
+    pos = (pos[0], pos[1], where(below & (vz <= 0.0), ground, pos[2]))
+    stopped = (where(resting, 0.0, vel[0]), where(resting, 0.0, vel[1]), vz)
+    k = 1.0 / dt_s
+    dv = ((stopped[0] - vel[0]) * k, (stopped[1] - vel[1]) * k, (stopped[2] - vel[2]) * k)
+    felt = mat_t_vec(rot, dv)  # type: ignore[arg-type]
+    sf_body = (sf_body[0] + felt[0], sf_body[1] + felt[1], sf_body[2] + felt[2])
     level = quat.from_yaw(quat.to_euler(q)[2])
     q = (where(resting, level[0], q[0]), where(resting, level[1], q[1]), where(resting, level[2], q[2]),
          where(resting, level[3], q[3]))
     om = (where(resting, 0.0, om[0]), where(resting, 0.0, om[1]), where(resting, 0.0, om[2]))
-    sf_body = (where(resting, 0.0, sf_body[0]), where(resting, 0.0, sf_body[1]),
-               where(resting, -c.gravity_m_s2, sf_body[2]))
-    return pos, vel, q, om, sf_body
+    return pos, stopped, q, om, sf_body

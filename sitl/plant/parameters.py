@@ -19,8 +19,8 @@ from typing import Any, Callable, Iterator
 
 from .vehicle import SimVehicle
 
-__all__ = ["Row", "Param", "ParamTable", "PlantBinding", "SIM_ROWS", "build_plant_parameters", "V", "E", "D",
-           "XYZ"]
+__all__ = ["Row", "Param", "ParamTable", "PlantBinding", "SIM_ROWS", "THRUST_MAX_ROW", "build_plant_parameters",
+           "V", "E", "D", "XYZ"]
 
 @dataclass(frozen=True)
 class Row:
@@ -53,6 +53,10 @@ V = (1.0, None, None)
 E = (None, 1.0, None)
 D = (None, None, 1.0)
 XYZ = (1.0, 1.0, 1.0)
+
+THRUST_MAX_ROW = Row("SIM_THRUST_MAX", "scenario.vehicle.thrust_max_n", 0.0, 1e3, "N", "thrust at normalised 1.0",
+                     read_only=True)
+"""what a normalised thrust of 1 is in newtons: the companion's thrust scale on a simulated vehicle"""
 
 SIM_ROWS: tuple[Row, ...] = (
     Row("SIM_WIND_N", "scenario.wind.mean_ned_m_s", -6.0, 6.0, "m/s", "mean wind (air velocity) north",
@@ -283,4 +287,5 @@ def build_plant_parameters(vehicle: SimVehicle, say: Callable[[str], None],
                            exclude: frozenset[str] = frozenset()) -> ParamTable:
     """The plant's table on one vehicle, without the names in ``exclude`` (a real autopilot's
     own parameters are never shadowed)."""
-    return bind_rows(PlantBinding(vehicle, say), tuple(r for r in SIM_ROWS if r.name not in exclude))
+    rows = (THRUST_MAX_ROW, *SIM_ROWS)
+    return bind_rows(PlantBinding(vehicle, say), tuple(r for r in rows if r.name not in exclude))
