@@ -100,14 +100,12 @@ class ArduPilotProcess:
         return self.proc is not None and self.proc.poll() is None
 
     def stop(self) -> None:
+        """SIGKILL: ArduPilot ignores SIGTERM while it waits for the physics (it checks its exit
+        flag in its main loop only), and a fresh working directory has nothing to save."""
         p = self.proc
         if p is not None and p.poll() is None:
-            p.send_signal(signal.SIGTERM)
-            try:
-                p.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait()
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
 
 
 class ArduPilotBridge(Bridge):
