@@ -167,6 +167,9 @@ class Bridge:
                     timeout = 0.002
             for key, _ in self.sel.select(timeout):
                 key.data(key.fileobj)
+            if isinstance(self.relay, TcpRelay) and self.relay._unpaired:
+                self.relay.retry()
+                self._sync_relay()
             if world.t >= next_tick:
                 next_tick = world.t + 0.05
                 self.plant.send(self.component.tick(world.t))

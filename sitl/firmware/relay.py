@@ -151,14 +151,25 @@ class TcpRelay:
         self._bufs: dict[socket.socket, bytearray] = {}
         self._up: set[socket.socket] = set()
         self._pending: dict[socket.socket, bytes] = {}
+        self._unpaired: list[socket.socket] = []
+        """companions connected before the firmware's port was open"""
         self.bytes = {"down": 0, "up": 0}
 
     def sockets(self) -> list[socket.socket]:
-        return [self.server, *self.pairs]
+        return [self.server, *self.pairs, *self._unpaired]
 
     def readable(self, sock: socket.socket) -> None:
         if sock is self.server:
             self._accept()
+            return
+        if sock in self._unpaired:
+            try:
+                if not sock.recv(65536):
+                    self._unpaired.remove(sock)
+                    sock.close()
+            except OSError:
+                self._unpaired.remove(sock)
+                sock.close()
             return
         try:
             data = sock.recv(65536)
@@ -201,13 +212,26 @@ class TcpRelay:
             client, _ = self.server.accept()
         except OSError:
             return
-        fw = socket.create_connection(self.firmware, timeout=5.0)
-        for s in (client, fw):
-            s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            s.settimeout(2.0)  # recv only when select says so; sendall may wait for a full buffer
-            self._bufs[s] = bytearray()
-        self.pairs[client], self.pairs[fw] = fw, client
-        self._up.add(client)
+        client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        client.settimeout(2.0)  # recv only when select says so; sendall may wait for a full buffer
+        self._unpaired.append(client)
+        self.retry()
+
+    def retry(self) -> None:
+        """Connect each companion that is still waiting to the firmware (whose port opens a moment
+        after it starts); until then what the companion sends is dropped, as a serial port would."""
+        for client in list(self._unpaired):
+            try:
+                fw = socket.create_connection(self.firmware, timeout=0.2)
+            except OSError:
+                return
+            self._unpaired.remove(client)
+            fw.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            fw.settimeout(2.0)
+            for s in (client, fw):
+                self._bufs[s] = bytearray()
+            self.pairs[client], self.pairs[fw] = fw, client
+            self._up.add(client)
 
     def _drop(self, sock: socket.socket) -> None:
         other = self.pairs.pop(sock, None)
@@ -220,7 +244,7 @@ class TcpRelay:
                 s.close()
 
     def close(self) -> None:
-        for s in list(self.pairs):
+        for s in [*self.pairs, *self._unpaired]:
             s.close()
         self.pairs.clear()
         self.server.close()

@@ -1,7 +1,7 @@
-"""The bridge is validated, not assumed: PX4 flying the project's plant (``sitl --firmware px4``)
-behaves as PX4 does in its own simulator (SIH), within stated tolerances, in calm air — the same
-assertions against both (docs/autopilots.md, "The firmware on the project's plant", lists what
-differs and why).
+"""The bridge is validated, not assumed: PX4 and ArduCopter flying the project's plant (``sitl
+--firmware``) behave as they do in their own simulators (PX4's SIH, ArduCopter's SITL physics),
+within stated tolerances, in calm air — the same assertions against both (docs/autopilots.md, "The
+firmware on the project's plant", lists what differs and why). For PX4:
 
 - it hovers at the throttle its airframe needs: the weight over full thrust (SIH: SIH_MASS g /
   (4 SIH_T_MAX); the plant: m g / SIM_THRUST_MAX), within 3 points;
@@ -25,10 +25,11 @@ from companion.control.params import VehicleParams
 from companion.mavlink.modes import px4_custom_mode
 from companion.mavlink.params import PLANT_COMPID
 from companion.vehicle_process import FirmwareVehicle
-from helpers.firmware import Px4Sih, find_px4
+from helpers.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4
 
 from .conftest import Target, latest, stream, wait
-from .test_contract import armable, command, heartbeat
+from .test_contract import (_fast_streams, _fly_and_record, _guided_airborne, _hover_throttle, _roll, _set_param,
+                            armable, command, heartbeat)
 
 pytestmark = [pytest.mark.integration, pytest.mark.contract]
 
@@ -155,3 +156,67 @@ def test_px4s_attitude_loop_follows_a_roll_step(px4_on):
     assert max(r for _, r in rolls) < 12.5, (px4_on.name, max(r for _, r in rolls))
     late = [r for t, r in rolls if t >= 1.0]
     assert late and abs(sum(late) / len(late) - 10.0) < 1.5, (px4_on.name, late[:5])
+
+
+# --- ArduCopter: its own SITL physics (--model +) against the plant (JSON) ---------------------------
+
+@pytest.fixture(params=["own simulator", "our plant"])
+def copter_on(request) -> Iterator[Sim]:
+    binary, why = find_arducopter()
+    if binary is None:
+        pytest.skip(why)
+    if request.param == "own simulator":
+        with ArduCopterSitl(binary, speedup=4.0) as a:
+            yield Sim("ArduCopter SITL", f"tcp:127.0.0.1:{a.tcp_port}", hold_bound_m=0.6)
+        return
+    v = FirmwareVehicle("ardupilot", speedup=4.0, lockstep_ms=0, instance=2)
+    try:
+        sim = Sim("ArduCopter on the plant", "tcp:127.0.0.1:5780", hold_bound_m=0.05)
+        sim.hover_physics = VehicleParams().weight_n / VehicleParams().thrust_max_n
+        yield sim
+    finally:
+        v.stop(timeout_s=30)
+
+
+def test_arducopter_hovers_at_its_hover_throttle_and_holds_its_point(copter_on):
+    """In GUIDED, 2 m up: the throttle it hovers at (VFR_HUD) is its learnt MOT_THST_HOVER within 4
+    points (its thrust curve is the airframe's), on the plant also the physics' m g / T_max; its own
+    position control holds within the bound of its position source."""
+    m = copter_on.connect()
+    _guided_airborne(m, copter_on)
+    _fast_streams(m, copter_on)
+    _samples(m, "LOCAL_POSITION_NED", 8.0)
+    hud = [h.throttle / 100.0 for h in _samples_hud(m, 5.0)]
+    hover = sum(hud) / len(hud)
+    learnt = _hover_throttle(m, copter_on)
+    assert hover == pytest.approx(learnt, abs=0.04), (copter_on.name, hover, learnt)
+    if math.isfinite(copter_on.hover_physics):
+        assert hover == pytest.approx(copter_on.hover_physics, abs=0.04), (copter_on.name, hover)
+    pos = _samples(m, "LOCAL_POSITION_NED", 10.0)
+    n0 = sum(p.x for p in pos) / len(pos)
+    e0 = sum(p.y for p in pos) / len(pos)
+    rms = math.sqrt(sum((p.x - n0) ** 2 + (p.y - e0) ** 2 for p in pos) / len(pos))
+    assert rms < copter_on.hold_bound_m, (copter_on.name, rms)
+
+
+def test_arducopters_attitude_loop_follows_a_roll_step(copter_on):
+    """GUIDED attitude targets unshaped (ATC_RATE_FF_ENAB 0), a 10 deg roll step: 10-90 % within
+    0.6 s (ATC_ANG_RLL_P 4.5 is a 0.22 s time constant), at most 25 % overshoot, within 1.5 deg
+    after 1.5 s."""
+    m = copter_on.connect()
+    _guided_airborne(m, copter_on)
+    _set_param(m, copter_on, "ATC_RATE_FF_ENAB", 0.0)
+    hover = _hover_throttle(m, copter_on)
+    _fast_streams(m, copter_on)
+    _fly_and_record(m, copter_on, 1.0, _roll(0.0), hover)
+    seen = _fly_and_record(m, copter_on, 2.5, _roll(10.0), hover / math.cos(math.radians(10.0)))
+    att = [a for a in seen if a.get_type() == "ATTITUDE"]
+    t0 = att[0].time_boot_ms
+    rolls = [((a.time_boot_ms - t0) * 1e-3, math.degrees(a.roll)) for a in att]
+    start = [t for t, r in rolls if r >= 1.0]
+    rise = [t for t, r in rolls if r >= 9.0]
+    assert start and rise, rolls[:20]
+    assert rise[0] - start[0] < 0.6, (copter_on.name, rise[0] - start[0])
+    assert max(r for _, r in rolls) < 12.5, (copter_on.name, max(r for _, r in rolls))
+    late = [r for t, r in rolls if t >= 1.5]
+    assert late and abs(sum(late) / len(late) - 10.0) < 1.5, (copter_on.name, late[:5])

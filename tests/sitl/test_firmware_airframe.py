@@ -52,20 +52,22 @@ def test_px4_is_told_the_plants_geometry_hover_thrust_and_thrust_curve() -> None
     assert ardupilot_parameters(Scenario(name="t"))["FRAME_TYPE"] == 0
 
 
-def test_the_thrust_model_factor_fits_the_motor_interface() -> None:
-    """The plant's thrust for a normalised output u, against f u^2 + (1 - f) u: within the 1.5 %
-    of full thrust that an idle rotor gives."""
+def test_the_thrust_the_firmware_models_is_the_plants() -> None:
+    """Both autopilots model thrust as f u^2 + (1 - f) u of full thrust (f: THR_MDL_FAC,
+    MOT_THST_EXPO): the plant's rotors give exactly that above idle, quantised by the 8-bit grid
+    (0.6 % of full thrust near hover)."""
     v = VehicleParams()
     f = thrust_model_factor(v)
-    lo, hi = v.rotor_speed_min_rad_s, v.rotor_speed_max_rad_s
-    for u in (0.1, 0.3, 0.5, 0.7, 0.9, 1.0):
-        w = lo + u * (hi - lo)
-        assert (w / hi) ** 2 == pytest.approx(f * u * u + (1 - f) * u, abs=0.016)
+    for u in (0.2, 0.4, 0.577, 0.8, 1.0):
+        (w, *_), = [rotor_commands((u,) * 4, v, 256)]
+        thrust = 4 * v.k_thrust_n_s2 * w * w / v.thrust_max_n
+        assert thrust == pytest.approx(f * u * u + (1 - f) * u, abs=0.006), u
 
 
 def test_stopped_disarmed_and_garbage_outputs_stop_the_motors() -> None:
     v = VehicleParams()
     assert rotor_commands((0.5, 0.5, 0.5, 0.5), v, 256, armed=False) == (0.0, 0.0, 0.0, 0.0)
+    assert rotor_commands((0.01,) * 4, v, 256) == (pytest.approx(v.rotor_speed_min_rad_s),) * 4  # idle at least
     cmd = rotor_commands((0.0, -1.0, math.nan, 2.0), v, 256)
     # firmware motors 1-3 stopped (plant rotors 4, 2, 1), motor 4 (plant rotor 3) saturates at full speed
     assert cmd == (0.0, 0.0, pytest.approx(v.rotor_speed_max_rad_s), 0.0)
