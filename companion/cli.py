@@ -62,7 +62,8 @@ def _fly(args: argparse.Namespace) -> int:
     opts = FlightOptions(mission_file=Path(args.mission),
                          connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
                          out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet, signing_key=key,
-                         connect_timeout_s=args.connect_timeout, output=args.output, take_over=args.take_over)
+                         connect_timeout_s=args.connect_timeout, output=args.output, take_over=args.take_over,
+                         ardupilot_shaping=args.ardupilot_shaping)
     try:
         flight = Flight(mission, opts)
     except OSError as exc:
@@ -177,6 +178,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     fly.add_argument("--take-over", action="store_true",
                      help="fly a vehicle that is already armed or flying, from where it is (no take-off); "
                           "without it the companion refuses such a vehicle: another operator may be flying it")
+    fly.add_argument("--ardupilot-shaping", action=argparse.BooleanOptionalAction, default=None,
+                     help="ArduCopter: keep (--ardupilot-shaping) or turn off for the flight "
+                          "(--no-ardupilot-shaping, the default) its attitude input shaping, ATC_RATE_FF_ENAB; turned "
+                          "off, it is put back when the flight ends, on every path (default: the mission's "
+                          "[controller] ardupilot_shaping)")
     fly.add_argument("--no-plots", action="store_true")
     fly.add_argument("--quiet", action="store_true")
     add_signing_options(fly)

@@ -98,14 +98,15 @@ GUIDED_TIMEOUT_S = 0.5
 attitude target, rotated by the last body rates, for 3 s (a vehicle pitched to 39 deg and flew 35 m)"""
 
 
-async def prepare_ardupilot(params: ParamChanges, log: Callable[[str], None]) -> None:
+async def prepare_ardupilot(params: ParamChanges, log: Callable[[str], None], keep_shaping: bool = False) -> None:
     """What GUIDED needs to fly this controller's attitude targets as the paper means them, each
     change put back at the end:
 
     - GUID_OPTIONS bit 3: thrust is throttle, not a climb rate;
     - GUID_TIMEOUT short (GUIDED_TIMEOUT_S): a silent companion is noticed in half a second;
     - ATC_RATE_FF_ENAB 0: ArduPilot shapes a commanded attitude by its input time constant
-      (ATC_INPUT_TC) when feed-forward is on; that lag alone was 10.3 vs 2.0 cm RMS on the square;
+      (ATC_INPUT_TC) when feed-forward is on; that lag alone was 10.3 vs 2.0 cm RMS on the square
+      (``keep_shaping``: the mission's or the command line's choice to leave it on);
     - angle boost off: ArduPilot multiplies throttle by 1/cos(tilt) on top of the full thrust we
       send (the vehicle climbed ~15 cm in every turn).
 
@@ -114,7 +115,10 @@ async def prepare_ardupilot(params: ParamChanges, log: Callable[[str], None]) ->
     await params.set_bits("GUID_OPTIONS", 8, "thrust is throttle")
     if not await params.set("GUID_TIMEOUT", GUIDED_TIMEOUT_S, "a silent companion is noticed at once"):
         log("GUID_TIMEOUT: no such parameter; a dead companion's last target is held for ArduPilot's default")
-    await params.set("ATC_RATE_FF_ENAB", 0.0, "attitude targets flown as sent, not shaped")
+    if keep_shaping:
+        log("ATC_RATE_FF_ENAB left as it is (ardupilot_shaping): attitude targets are shaped by ATC_INPUT_TC")
+    else:
+        await params.set("ATC_RATE_FF_ENAB", 0.0, "attitude targets flown as sent, not shaped")
     for name in ("ATC_ANGLE_BOOST", "ANGLE_BOOST"):  # 4.8 / older
         if await params.set(name, 0.0, "no extra throttle in tilt: the controller sends the full thrust"):
             break

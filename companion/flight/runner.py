@@ -76,6 +76,8 @@ class FlightOptions:
     """copied into the flight record"""
     take_over: bool = False
     """fly a vehicle that is already armed or flying, from where it is (its take-off steps skipped)"""
+    ardupilot_shaping: bool | None = None
+    """overrides the mission's [controller] ardupilot_shaping"""
 
 
 @dataclass
@@ -517,7 +519,9 @@ class Flight:
         t_max, source = found
         self.log(f"thrust scale {t_max:.2f} N at full throttle ({source})")
         if link.state.autopilot == "ardupilot":
-            await prepare_ardupilot(self.params, self.log)
+            keep = self.opt.ardupilot_shaping
+            await prepare_ardupilot(self.params, self.log,
+                                    keep_shaping=m.controller.ardupilot_shaping if keep is None else keep)
         gains = m.gains
         if self.link.state.specific_force_body_m_s2 is None:
             gains = dataclasses.replace(gains, observer_uses_imu=False)

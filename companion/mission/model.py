@@ -61,6 +61,10 @@ class ControllerConfig:
     position: str = "ism_do"
     """pid | aibc | pd_do | ism_do"""
     rate_hz: float = 100.0
+    ardupilot_shaping: bool = False
+    """ArduCopter only: keep its attitude input shaping (ATC_RATE_FF_ENAB 1, ATC_INPUT_TC) while the
+    companion flies. By default the companion turns it off and puts it back when the flight ends,
+    on every path: shaped, each attitude target lags by the input time constant (0.15 s)"""
 
 
 @dataclass(frozen=True)
