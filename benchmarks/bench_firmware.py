@@ -36,18 +36,20 @@ EXPERIMENTS = {
     "square": ("missions/square_wind.toml", ("square",)),
 }
 CONTROLLERS = ("ism_do", "pd_do", "pid", "autopilot")
-LABELS = {"ism_do": "ISM+DO", "pd_do": "PD+DO", "pid": "PID", "autopilot": "autopilot's own"}
+LABELS = {"ism_do": "ISM+DO", "pd_do": "PD+DO", "pid": "PID", "autopilot": "autopilot's own",
+          "ism_do_shaped": "ISM+DO, ArduCopter's input shaping kept"}
 TILT_PARAM = {"px4": "MPC_TILTMAX_AIR", "ardupilot": "ATC_ANGLE_MAX"}
 
 
 def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float, out: Path,
-        firmware_params: dict[str, float]) -> Path:
+        firmware_params: dict[str, float], companion_args: tuple[str, ...] = ()) -> Path:
     args = [f"--seed={seed}", *(f"--firmware-param={k}={v:g}" for k, v in firmware_params.items())]
     vehicle = FirmwareVehicle(firmware, *args, speedup=speedup, instance=7)
     try:
         r = subprocess.run([sys.executable, "-m", "companion", "fly", str(ROOT / mission), "--connect", vehicle.url,
                             "--controller", controller, "--out", str(out), "--no-plots", "--quiet",
-                            "--connect-timeout", "120"], capture_output=True, text=True, timeout=900, cwd=ROOT)
+                            "--connect-timeout", "120", *companion_args], capture_output=True, text=True, timeout=900,
+                           cwd=ROOT)
     finally:
         vehicle.stop(timeout_s=30)
     folder = Path(r.stdout.strip().rsplit(" -> ", 1)[-1]) if " -> " in r.stdout else None
@@ -71,6 +73,8 @@ def main() -> int:
     ap.add_argument("--tilt", type=float, default=0.0,
                     help="also fly the autopilot's own control with its tilt limit raised to this [deg] "
                          "(PX4 MPC_TILTMAX_AIR, ArduCopter ATC_ANGLE_MAX; default: only their defaults)")
+    ap.add_argument("--shaping", action="store_true",
+                    help="on ArduCopter, also fly ISM+DO with its attitude input shaping kept (--ardupilot-shaping)")
     ap.add_argument("--out", default=str(ROOT / "docs"))
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="bench-firmware-"))
@@ -82,15 +86,17 @@ def main() -> int:
         if found[firmware] is None:
             print(f"skipped {firmware}: {(px4_build if firmware == 'px4' else arducopter_binary)()[1]}")
             continue
-        variants = [(c, {}) for c in args.controllers]
+        variants: list[tuple[str, dict[str, float], tuple[str, ...]]] = [(c, {}, ()) for c in args.controllers]
         if args.tilt and "autopilot" in args.controllers:
-            variants.append((f"autopilot_tilt{args.tilt:g}", {TILT_PARAM[firmware]: args.tilt}))
+            variants.append((f"autopilot_tilt{args.tilt:g}", {TILT_PARAM[firmware]: args.tilt}, ()))
+        if args.shaping and firmware == "ardupilot" and "ism_do" in args.controllers:
+            variants.append(("ism_do_shaped", {}, ("--ardupilot-shaping",)))
         for experiment in args.experiments:
             mission, names = EXPERIMENTS[experiment]
-            for controller, params in variants:
+            for controller, params, extra in variants:
                 for seed in args.seeds:
-                    folder = fly(firmware, mission, controller.split("_tilt")[0], seed, args.speedup,
-                                 work / firmware / experiment, params)
+                    folder = fly(firmware, mission, controller.split("_tilt")[0].removesuffix("_shaped"), seed,
+                                 args.speedup, work / firmware / experiment, params, extra)
                     key = (firmware, experiment, controller)
                     results.setdefault(key, []).append(segments(folder, names))
                     folders.setdefault(key, folder)
