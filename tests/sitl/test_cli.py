@@ -105,3 +105,25 @@ def test_no_value_of_any_option_gives_a_traceback(option: str, value: str) -> No
     lines = err.getvalue().splitlines()
     assert (code == 0 and not lines) or (code == 2 and len(lines) == 1 and lines[0].startswith("sitl: error: ")), \
         (option, value, code, lines)
+
+
+def run_firmware(capsys, *args: str) -> tuple[int, list[str]]:  # type: ignore[no-untyped-def]
+    try:
+        code = main(["--quiet", "--no-signing", *args])
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    return code, capsys.readouterr().err.splitlines()
+
+
+@pytest.mark.parametrize("args, says", [
+    (("--firmware", "px4", "--firmware-path", "/nonexistent"), "no PX4 SITL build"),
+    (("--firmware", "ardupilot", "--firmware-path", "/tmp"), "no ArduCopter SITL"),
+    (("--firmware", "px4", "--attitude", "pd"), "--attitude is the bundled autopilot's"),
+    (("--firmware", "px4", "--listen", "127.0.0.1:15000"), "--listen is the bundled autopilot's"),
+    (("--firmware", "gazebo"), "invalid choice"),
+    (("--layout", "x"), "--layout needs --firmware"),
+    (("--position-source", "gnss"), "--position-source needs --firmware"),
+])
+def test_firmware_options_are_checked(capsys, args, says) -> None:  # type: ignore[no-untyped-def]
+    code, err = run_firmware(capsys, *args)
+    assert code == 2 and len(err) == 1 and says in err[0], err
