@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from companion.control.params import VehicleParams
+from companion.mavlink.params import PLANT_COMPID
 from sitl.plant.geo import GeoOrigin
 from sitl.plant.nav_sensors import NavSensorParams
 from sitl.plant.parameters import build_plant_parameters
@@ -96,12 +97,15 @@ class Session:
         gate = CompanionGate(lead)
         pace = Pace(speedup)
         vision = scenario.nav_sensors.position_source == "mocap"
+        local = (PLANT_COMPID, component.receive)
+        """the companion's link reaches the plant's component directly (a ground station through
+        the firmware's forwarding)"""
         self.bridge: Bridge
         self.process: Px4Process | ArduPilotProcess
         if firmware == "px4":
             ports = Px4Ports(instance)
             relay: UdpRelay | TcpRelay = UdpRelay(("127.0.0.1", ports.relay), ("127.0.0.1", ports.companion),
-                                                  gate.setpoint, gate.telemetry)
+                                                  gate.setpoint, gate.telemetry, local)
             plant = PlantSocket(ports.plant, ("127.0.0.1", ports.plant_firmware))
             self.bridge = Px4Bridge(world, component, plant, relay, gate, pace, ports=ports, vision=vision)
             self.process = Px4Process(build, ports, px4_parameters(scenario) | (firmware_params or {}), self.workdir)
@@ -111,7 +115,7 @@ class Session:
         else:
             aports = ArduPilotPorts(instance)
             relay = TcpRelay(("127.0.0.1", aports.companion), ("127.0.0.1", aports.serial0), gate.setpoint,
-                             gate.telemetry)
+                             gate.telemetry, local)
             plant = PlantSocket(aports.plant)
             self.bridge = ArduPilotBridge(world, component, plant, relay, gate, pace, ports=aports, vision=vision)
             home = f"{origin.lat_deg},{origin.lon_deg},{origin.alt_m},0"

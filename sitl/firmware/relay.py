@@ -14,7 +14,7 @@ import socket
 import struct
 from collections.abc import Callable
 
-__all__ = ["frames", "stamps", "UdpRelay", "TcpRelay", "SETPOINTS", "CLOCKS_MS", "CLOCKS_US"]
+__all__ = ["frames", "stamps", "for_component", "UdpRelay", "TcpRelay", "SETPOINTS", "CLOCKS_MS", "CLOCKS_US"]
 
 SETPOINTS = frozenset({82, 84, 86})
 """SET_ATTITUDE_TARGET, SET_POSITION_TARGET_LOCAL_NED, SET_POSITION_TARGET_GLOBAL_INT: time_boot_ms first"""
@@ -22,6 +22,8 @@ CLOCKS_MS = frozenset({30, 31, 32, 33})
 """ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED, GLOBAL_POSITION_INT: time_boot_ms first"""
 CLOCKS_US = frozenset({105, 331})
 """HIGHRES_IMU, ODOMETRY: time_usec first"""
+TARGET_COMPONENT = {20: 3, 21: 1, 23: 5}
+"""PARAM_REQUEST_READ, PARAM_REQUEST_LIST, PARAM_SET: where target_component sits in the payload"""
 _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
 
@@ -72,7 +74,35 @@ def stamps(msgs: list[tuple[int, bytes]], kinds_ms: frozenset[int], kinds_us: fr
     return newest
 
 
+def for_component(buf: bytes | bytearray, compid: int) -> tuple[bytes, bytes]:
+    """Split whole frames into those addressed to component ``compid`` (parameter messages with
+    that target_component) and the rest, each in its original bytes and order."""
+    mine, rest = bytearray(), bytearray()
+    i, n = 0, len(buf)
+    while i < n:
+        magic = buf[i]
+        if magic == 0xFD and n - i >= 10:
+            length, flags = buf[i + 1], buf[i + 2]
+            end, msgid, start = i + 12 + length + (13 if flags & 1 else 0), buf[i + 7] | buf[i + 8] << 8, i + 10
+        elif magic == 0xFE and n - i >= 6:
+            length = buf[i + 1]
+            end, msgid, start = i + 8 + length, buf[i + 5], i + 6
+        else:
+            rest += buf[i:]
+            break
+        if end > n:
+            rest += buf[i:]
+            break
+        offset = TARGET_COMPONENT.get(msgid)
+        payload = bytes(buf[start:start + length]) + bytes(8)
+        (mine if offset is not None and payload[offset] == compid else rest).extend(buf[i:end])
+        i = end
+    return bytes(mine), bytes(rest)
+
+
 OnStamp = Callable[[float], None]
+Local = Callable[[bytes], list[bytes]]
+"""the bridge's own component: frames addressed to it in, its replies out"""
 
 
 class UdpRelay:
@@ -81,7 +111,10 @@ class UdpRelay:
     firmware's address."""
 
     def __init__(self, firmware_side: tuple[str, int], companion: tuple[str, int], on_setpoint: OnStamp,
-                 on_telemetry: OnStamp) -> None:
+                 on_telemetry: OnStamp, local: tuple[int, Local] | None = None) -> None:
+        self.local = local
+        """(component id, handler): what the companion addresses to that component is answered
+        here instead of through the firmware's forwarding (PX4 keeps two forwarded messages a link)"""
         self.fw_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.fw_sock.bind(firmware_side)
         self.fw_sock.setblocking(False)
@@ -115,6 +148,13 @@ class UdpRelay:
                 t = stamps(frames(data)[0], SETPOINTS)
                 if t:
                     self.on_setpoint(t)
+                if self.local is not None:
+                    mine, data = for_component(data, self.local[0])
+                    if mine:
+                        for reply in self.local[1](mine):
+                            self._send(self.co_sock, reply, self.companion, "down")
+                    if not data:
+                        continue
                 self._send(self.fw_sock, data, self.firmware_addr, "up")
 
     def inject(self, data: bytes) -> None:
@@ -139,7 +179,9 @@ class TcpRelay:
     the firmware at ``firmware``, bytes relayed both ways."""
 
     def __init__(self, listen: tuple[str, int], firmware: tuple[str, int], on_setpoint: OnStamp,
-                 on_telemetry: OnStamp) -> None:
+                 on_telemetry: OnStamp, local: tuple[int, Local] | None = None) -> None:
+        self.local = local
+        """as :class:`UdpRelay`'s"""
         self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.server.bind(listen)
@@ -195,6 +237,12 @@ class TcpRelay:
             (self.on_setpoint if up else self.on_telemetry)(t)
         if not up:
             whole += self._pending.pop(other, b"")  # between whole frames
+        elif self.local is not None:
+            mine, whole = for_component(whole, self.local[0])
+            if mine:
+                replies = b"".join(self.local[1](mine))
+                if replies:
+                    self._pending[sock] = self._pending.get(sock, b"") + replies
         try:
             other.sendall(whole)
             self.bytes["up" if up else "down"] += len(whole)

@@ -31,7 +31,8 @@ from .conftest import Target, latest, stream, wait
 from .test_contract import (_fast_streams, _fly_and_record, _guided_airborne, _hover_throttle, _roll, _set_param,
                             armable, command, heartbeat)
 
-pytestmark = [pytest.mark.integration, pytest.mark.contract]
+pytestmark = [pytest.mark.integration, pytest.mark.contract, pytest.mark.firmware]
+"""every test here runs a real autopilot (the tier make test runs one at a time)"""
 
 ALTITUDE_M = 5.0
 """SIH's GPS height is off by up to 1.6 m (docs/autopilots.md): both fly 5 m up"""

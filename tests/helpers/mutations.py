@@ -209,7 +209,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     ),
     Mutation(
         "allocation roll row sign", "companion/control/allocation.py",
-        (("torque = (arm * kf * (w2 - w4),", "torque = (arm * kf * (w4 - w2),"),),
+        (("tx, ty = arm * kf * (w2 - w4),", "tx, ty = arm * kf * (w4 - w2),"),),
         "(4) in FRD: a positive tau_x rolls right",
         (f"{ALLOC}::test_positive_roll_torque_rolls_right",),
     ),

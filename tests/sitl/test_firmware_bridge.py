@@ -237,3 +237,16 @@ def test_hover_outputs_hold_the_plant_up() -> None:
     # rotors' 20 ms lag, 0.48 m/s
     moving = world.step((u * 1.1,) * 4, True, 250)
     assert -0.55 < moving.state.vel_ned_m_s[2] < -0.42
+
+
+def test_the_relay_hands_what_is_addressed_to_the_plant_to_it_and_passes_the_rest() -> None:
+    from sitl.firmware.relay import for_component
+
+    to_plant = GCS.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 2.0, 9).pack(GCS)
+    read_plant = GCS.param_request_read_encode(1, PLANT_COMPID, b"SIM_WIND_N", -1).pack(GCS)
+    to_autopilot = GCS.param_set_encode(1, 1, b"MPC_XY_P", 1.0, 9).pack(GCS)
+    broadcast = GCS.param_request_list_encode(1, 0).pack(GCS)
+    sp = GCS.set_attitude_target_encode(1, 1, 25, 3, [1, 0, 0, 0], 0, 0, 0, 0.5).pack(GCS)  # 25 but a setpoint
+    mine, rest = for_component(to_autopilot + to_plant + sp + read_plant + broadcast, PLANT_COMPID)
+    assert mine == to_plant + read_plant and rest == to_autopilot + sp + broadcast
+    assert for_component(to_plant[:9], PLANT_COMPID) == (b"", to_plant[:9])  # cut: passed on as it came
