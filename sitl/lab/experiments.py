@@ -25,6 +25,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from companion.control.names import controller_label
+
 from ..plant.scenario import SCENARIO_DIR, Scenario, apply_settings, load_scenario, parse_setting
 from .claims import claims_for, judge
 from .metrics import SegmentMetrics, flight_metrics
@@ -142,7 +144,7 @@ def draw_figure(result: ExperimentResult, out_dir: Path) -> Path:
 
 
 def _short(name: str) -> str:
-    return {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD", "indi": "INDI"}[name]
+    return controller_label(name)
 
 
 def summary_table(result: ExperimentResult) -> str:

@@ -17,6 +17,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .metrics import euler_deg, rate_cmd_deg_s, tilt_deg  # noqa: E402
+from companion.control.names import controller_label  # noqa: E402
+
 from .simulation import FlightLog  # noqa: E402
 
 __all__ = ["FIGURES", "draw", "label", "boxplot_figure"]
@@ -26,8 +28,7 @@ STYLES = {"ism_do": "-", "pd_do": "--", "pd": ":", "indi": "-."}
 
 
 def label(log: FlightLog) -> str:
-    names = {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD", "indi": "INDI"}
-    return f"{names[log.position]} / att. {names[log.attitude]}"
+    return f"{controller_label(log.position)} / att. {controller_label(log.attitude)}"
 
 
 def _style(log: FlightLog) -> dict[str, object]:

@@ -57,6 +57,7 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 from companion.config import ConfigError, load_toml, locate
+from companion.control.names import controller_label
 from companion.control.attitude import ATTITUDE_CONTROLLERS
 from companion.control.position import POSITION_CONTROLLERS
 
@@ -554,9 +555,8 @@ def draw_sweep(spec: SweepSpec, table: Path) -> list[Path]:
     rows = [r for r in load_cases(table) if r["status"] == "ok"]
     if not rows:
         return []
-    names = {"pid": "PID", "aibc": "AIBC", "pd_do": "PD+DO", "ism_do": "ISM+DO", "pd": "PD"}
     combos = [(p, a) for a in spec.attitude for p in spec.position]
-    label = {c: f"{names[c[0]]}/{names[c[1]]}" for c in combos}
+    label = {c: f"{controller_label(c[0])}/{controller_label(c[1])}" for c in combos}
     out = []
     fig, axs = plt.subplots(1, len(spec.metrics), figsize=(5 * len(spec.metrics), 4.5), squeeze=False)
     for ax, metric in zip(axs[0], spec.metrics):

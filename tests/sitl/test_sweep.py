@@ -136,3 +136,35 @@ def test_cases_that_differ_in_gains_fly_as_one_batch_with_the_numbers_of_separat
     a = [float(r["rms_horizontal_error_m"]) for r in alone.values() if r["position.omega_c_rad_s"] == "1.5"]
     b = [float(r["rms_horizontal_error_m"]) for r in alone.values() if r["position.omega_c_rad_s"] == "2.2"]
     assert a != b
+
+
+def test_every_bundled_sweep_draws_its_figures_for_every_controller_it_names(tmp_path) -> None:
+    """The figures of both bundled sweeps from a table written here (one row per controller pair
+    and parameter set, the sweep's own columns): e3_wind and wind_and_mass flew every case and
+    then died drawing them (KeyError: 'indi') while the labels were a table of their own."""
+    import csv
+    import random
+
+    from companion.control.attitude import ATTITUDE_CONTROLLERS
+    from companion.control.names import CONTROLLER_LABELS
+    from companion.control.position import POSITION_CONTROLLERS
+    from sitl.lab.sweep import SWEEP_DIR, _columns, draw_sweep, load_sweep
+
+    assert set(ATTITUDE_CONTROLLERS) | set(POSITION_CONTROLLERS) <= set(CONTROLLER_LABELS)
+    rng = random.Random(1)
+    for path in sorted(SWEEP_DIR.glob("*.toml")):
+        spec = load_sweep(path)
+        table = tmp_path / spec.name / "cases.csv"
+        table.parent.mkdir()
+        columns = _columns(spec)
+        with open(table, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=columns)
+            w.writeheader()
+            for p in spec.position:
+                for a in spec.attitude:
+                    for k, params in enumerate(spec.parameter_sets() or [{}]):
+                        row = {c: rng.random() for c in columns}
+                        row.update(case=f"{p}-{a}-{k}", position=p, attitude=a, status="ok", error="", **params)
+                        w.writerow(row)
+        drawn = draw_sweep(spec, table)
+        assert drawn and all(f.stat().st_size > 10_000 for f in drawn), (path.name, drawn)
