@@ -101,20 +101,6 @@ def _samples(m: mavutil.mavfile, kind: str, vehicle_s: float) -> list:  # type: 
     return out
 
 
-def test_px4_hovers_at_the_throttle_its_airframe_needs_and_holds_its_point(px4_on):
-    m = px4_on.connect()
-    _take_off(m, px4_on)
-    _samples(m, "LOCAL_POSITION_NED", 5.0)  # settle in LOITER
-    hud = [h.throttle / 100.0 for h in _samples_hud(m, 5.0)]
-    hover = sum(hud) / len(hud)
-    assert hover == pytest.approx(px4_on.hover_physics, abs=0.03), (px4_on.name, hover, px4_on.hover_physics)
-    pos = _samples(m, "LOCAL_POSITION_NED", 10.0)
-    n0 = sum(p.x for p in pos) / len(pos)
-    e0 = sum(p.y for p in pos) / len(pos)
-    rms = math.sqrt(sum((p.x - n0) ** 2 + (p.y - e0) ** 2 for p in pos) / len(pos))
-    assert rms < px4_on.hold_bound_m, (px4_on.name, rms)
-
-
 def _samples_hud(m: mavutil.mavfile, vehicle_s: float) -> list:  # type: ignore[type-arg]
     """VFR_HUD carries no stamp: dated by LOCAL_POSITION_NED read between them."""
     t0 = latest(m, "LOCAL_POSITION_NED").time_boot_ms
@@ -129,9 +115,21 @@ def _samples_hud(m: mavutil.mavfile, vehicle_s: float) -> list:  # type: ignore[
     return out
 
 
-def test_px4s_attitude_loop_follows_a_roll_step(px4_on):
+def test_px4_hovers_at_its_airframes_throttle_holds_its_point_and_follows_a_roll_step(px4_on):
+    """One boot, one flight: take-off, hover in PX4's own LOITER (throttle, hold), then OFFBOARD and
+    the roll step."""
     m = px4_on.connect()
     _take_off(m, px4_on)
+    _samples(m, "LOCAL_POSITION_NED", 5.0)  # settle in LOITER
+    hud = [h.throttle / 100.0 for h in _samples_hud(m, 5.0)]
+    hover = sum(hud) / len(hud)
+    assert hover == pytest.approx(px4_on.hover_physics, abs=0.03), (px4_on.name, hover, px4_on.hover_physics)
+    pos = _samples(m, "LOCAL_POSITION_NED", 10.0)
+    n0 = sum(p.x for p in pos) / len(pos)
+    e0 = sum(p.y for p in pos) / len(pos)
+    rms = math.sqrt(sum((p.x - n0) ** 2 + (p.y - e0) ** 2 for p in pos) / len(pos))
+    assert rms < px4_on.hold_bound_m, (px4_on.name, rms)
+
     hover = px4_on.hover_physics
     level = (1.0, 0.0, 0.0, 0.0)
     stream(m, px4_on.sysid, 1.0, level, hover)
@@ -150,13 +148,19 @@ def test_px4s_attitude_loop_follows_a_roll_step(px4_on):
             if time.monotonic() >= stop:
                 break
     stream(m, px4_on.sysid, 0.5, level, hover)
-    rise = [t for t, r in rolls if r >= 9.0]
+    _assert_step(px4_on.name, rolls, rise_s=0.35, settled_after_s=1.0)
+
+
+def _assert_step(name: str, rolls: list[tuple[float, float]], rise_s: float, settled_after_s: float) -> None:
+    """A 10 deg roll step: 10-90 % within ``rise_s``, under 25 % overshoot, within 1.5 deg after
+    ``settled_after_s``."""
     start = [t for t, r in rolls if r >= 1.0]
-    assert rise and start, rolls[:20]
-    assert rise[0] - start[0] < 0.35, (px4_on.name, rise[0] - start[0])
-    assert max(r for _, r in rolls) < 12.5, (px4_on.name, max(r for _, r in rolls))
-    late = [r for t, r in rolls if t >= 1.0]
-    assert late and abs(sum(late) / len(late) - 10.0) < 1.5, (px4_on.name, late[:5])
+    rise = [t for t, r in rolls if r >= 9.0]
+    assert start and rise, (name, rolls[:20])
+    assert rise[0] - start[0] < rise_s, (name, rise[0] - start[0])
+    assert max(r for _, r in rolls) < 12.5, (name, max(r for _, r in rolls))
+    late = [r for t, r in rolls if t >= settled_after_s]
+    assert late and abs(sum(late) / len(late) - 10.0) < 1.5, (name, late[:5])
 
 
 # --- ArduCopter: its own SITL physics (--model +) against the plant (JSON) ---------------------------
@@ -179,10 +183,12 @@ def copter_on(request) -> Iterator[Sim]:
         v.stop(timeout_s=30)
 
 
-def test_arducopter_hovers_at_its_hover_throttle_and_holds_its_point(copter_on):
-    """In GUIDED, 2 m up: the throttle it hovers at (VFR_HUD) is its learnt MOT_THST_HOVER within 4
-    points (its thrust curve is the airframe's), on the plant also the physics' m g / T_max; its own
-    position control holds within the bound of its position source."""
+def test_arducopter_hovers_at_its_hover_throttle_holds_its_point_and_follows_a_roll_step(copter_on):
+    """One boot, one flight in GUIDED, 2 m up: the throttle it hovers at (VFR_HUD) is its learnt
+    MOT_THST_HOVER within 4 points (its thrust curve is the airframe's), on the plant also the
+    physics' m g / T_max; its own position control holds within the bound of its position source;
+    then attitude targets unshaped (ATC_RATE_FF_ENAB 0), a 10 deg roll step: 10-90 % within 0.6 s
+    (ATC_ANG_RLL_P 4.5 is a 0.22 s time constant), within 1.5 deg after 1.5 s."""
     m = copter_on.connect()
     _guided_airborne(m, copter_on)
     _fast_streams(m, copter_on)
@@ -199,25 +205,9 @@ def test_arducopter_hovers_at_its_hover_throttle_and_holds_its_point(copter_on):
     rms = math.sqrt(sum((p.x - n0) ** 2 + (p.y - e0) ** 2 for p in pos) / len(pos))
     assert rms < copter_on.hold_bound_m, (copter_on.name, rms)
 
-
-def test_arducopters_attitude_loop_follows_a_roll_step(copter_on):
-    """GUIDED attitude targets unshaped (ATC_RATE_FF_ENAB 0), a 10 deg roll step: 10-90 % within
-    0.6 s (ATC_ANG_RLL_P 4.5 is a 0.22 s time constant), at most 25 % overshoot, within 1.5 deg
-    after 1.5 s."""
-    m = copter_on.connect()
-    _guided_airborne(m, copter_on)
     _set_param(m, copter_on, "ATC_RATE_FF_ENAB", 0.0)
-    hover = _hover_throttle(m, copter_on)
-    _fast_streams(m, copter_on)
-    _fly_and_record(m, copter_on, 1.0, _roll(0.0), hover)
-    seen = _fly_and_record(m, copter_on, 2.5, _roll(10.0), hover / math.cos(math.radians(10.0)))
+    _fly_and_record(m, copter_on, 1.0, _roll(0.0), learnt)
+    seen = _fly_and_record(m, copter_on, 2.5, _roll(10.0), learnt / math.cos(math.radians(10.0)))
     att = [a for a in seen if a.get_type() == "ATTITUDE"]
-    t0 = att[0].time_boot_ms
-    rolls = [((a.time_boot_ms - t0) * 1e-3, math.degrees(a.roll)) for a in att]
-    start = [t for t, r in rolls if r >= 1.0]
-    rise = [t for t, r in rolls if r >= 9.0]
-    assert start and rise, rolls[:20]
-    assert rise[0] - start[0] < 0.6, (copter_on.name, rise[0] - start[0])
-    assert max(r for _, r in rolls) < 12.5, (copter_on.name, max(r for _, r in rolls))
-    late = [r for t, r in rolls if t >= 1.5]
-    assert late and abs(sum(late) / len(late) - 10.0) < 1.5, (copter_on.name, late[:5])
+    _assert_step(copter_on.name, [((a.time_boot_ms - att[0].time_boot_ms) * 1e-3, math.degrees(a.roll)) for a in att],
+                 rise_s=0.6, settled_after_s=1.5)
