@@ -8,8 +8,10 @@ from (the companion's ``time_boot_ms``), and the world may run while the firmwar
 as its own telemetry says, is less than ``lead_s`` past that stamp — one control period, plus
 one telemetry interval so that the sample for the companion's next tick exists, plus a frame.
 
-A stream silent for ``give_up_wall_s`` of wall time while awake is gone, not late: time runs on
-(the firmware's own offboard-loss failsafe must be able to act), until a newer setpoint arrives.
+A stream silent for ``give_up_wall_s`` (3 s, as the bundled vehicle's lockstep) of wall time
+while awake is gone, not late: time runs on (the firmware's own offboard-loss failsafe must be able
+to act), until a newer setpoint arrives. A companion starved of CPU for a second on a busy host
+is late, not gone: with 1 s the world once ran on without it and PX4 never took OFFBOARD.
 Pure: the bridge passes the clocks; :mod:`.relay` extracts the stamps.
 """
 
@@ -25,7 +27,7 @@ __all__ = ["CompanionGate"]
 class CompanionGate:
     lead_s: float
     """how far past the newest setpoint's stamp the firmware may run [s]; 0: no lockstep"""
-    give_up_wall_s: float = 1.0
+    give_up_wall_s: float = 3.0
     setpoint_stamp_s: float = math.nan
     """firmware time of the telemetry the newest setpoint was computed from"""
     firmware_now_s: float = math.nan

@@ -51,7 +51,7 @@ def test_an_older_or_unstamped_setpoint_does_not_move_the_gate() -> None:
     assert gate.setpoint_stamp_s == 5.0
 
 
-def test_a_stream_silent_for_a_second_awake_is_gone_and_time_runs_on_to_the_failsafe() -> None:
+def test_a_stream_silent_for_its_wait_awake_is_gone_and_time_runs_on_to_the_failsafe() -> None:
     gate = CompanionGate(lead_s=0.025, give_up_wall_s=1.0)
     gate.setpoint(1.0)
     gate.telemetry(1.03)
