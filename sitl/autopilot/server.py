@@ -263,16 +263,21 @@ class MavlinkServer:
         if req.opcode == ftp.OPEN_FILE_RO:
             path = req.data.split(b"\x00", 1)[0].decode("ascii", "replace")
             ok = path == CATALOGUE_PATH and not self.ap.ardupilot
-            reply = ftp.encode(req.seq + 1, 1, ftp.ACK if ok else ftp.NAK, 0,
-                               len(blob).to_bytes(4, "little") if ok else bytes([ftp.ERR_FAIL]))
+            reply = (ftp.reply(req, ftp.ACK, 1, 0, len(blob).to_bytes(4, "little")) if ok else
+                     ftp.reply(req, ftp.NAK, 0, 0, bytes([ftp.ERR_FILE_NOT_FOUND])))
         elif req.opcode == ftp.READ_FILE:
             chunk = blob[req.offset:req.offset + min(req.size or ftp.DATA_MAX, ftp.DATA_MAX)]
-            reply = (ftp.encode(req.seq + 1, req.session, ftp.ACK, req.offset, chunk) if chunk else
-                     ftp.encode(req.seq + 1, req.session, ftp.NAK, req.offset, bytes([ftp.ERR_EOF])))
+            reply = (ftp.reply(req, ftp.ACK, None, req.offset, chunk) if chunk else
+                     ftp.reply(req, ftp.NAK, None, req.offset, bytes([ftp.ERR_EOF])))
+        elif req.opcode == ftp.BURST_READ_FILE:
+            for packet in ftp.burst(req, blob):
+                self.reply(self.mav.file_transfer_protocol_encode(0, msg.get_srcSystem(), msg.get_srcComponent(),
+                                                                 list(packet)))
+            return
         elif req.opcode in (ftp.TERMINATE_SESSION, ftp.RESET_SESSIONS):
-            reply = ftp.encode(req.seq + 1, req.session, ftp.ACK)
-        else:
-            reply = ftp.encode(req.seq + 1, req.session, ftp.NAK, 0, bytes([ftp.ERR_FAIL]))
+            reply = ftp.reply(req, ftp.ACK)
+        else:  # listing, writing, CRCs: not served; the client falls back or reports it
+            reply = ftp.reply(req, ftp.NAK, None, 0, bytes([ftp.ERR_UNKNOWN_COMMAND]))
         self.reply(self.mav.file_transfer_protocol_encode(0, msg.get_srcSystem(), msg.get_srcComponent(),
                                                          list(reply)))
 
