@@ -8,10 +8,13 @@ from (the companion's ``time_boot_ms``), and the world may run while the firmwar
 as its own telemetry says, is less than ``lead_s`` past that stamp — one control period, plus
 one telemetry interval so that the sample for the companion's next tick exists, plus a frame.
 
-A stream silent for ``give_up_wall_s`` (3 s, as the bundled vehicle's lockstep) of wall time
-while awake is gone, not late: time runs on (the firmware's own offboard-loss failsafe must be able
-to act), until a newer setpoint arrives. A companion starved of CPU for a second on a busy host
-is late, not gone: with 1 s the world once ran on without it and PX4 never took OFFBOARD.
+The world waits only while the firmware says a companion flies it (armed, in OFFBOARD or GUIDED:
+its heartbeat, read by the relay): a companion that has handed the vehicle back (a landing, a
+hold) stops streaming on purpose. A stream silent for ``give_up_wall_s`` (3 s, as the bundled
+vehicle's lockstep) of wall time while awake is gone, not late: time runs on (the firmware's own
+offboard-loss failsafe must be able to act), until a newer setpoint arrives. A companion starved
+of CPU for a second on a busy host is late, not gone: with 1 s the world once ran on without it
+and PX4 never took OFFBOARD.
 Pure: the bridge passes the clocks; :mod:`.relay` extracts the stamps.
 """
 
@@ -32,6 +35,8 @@ class CompanionGate:
     """firmware time of the telemetry the newest setpoint was computed from"""
     firmware_now_s: float = math.nan
     """the firmware's newest time, from its telemetry"""
+    flown: bool = True
+    """the firmware is armed in the companion's mode (until its heartbeat says otherwise)"""
     _given_up_on: float = math.nan
     _waiting_since_wall: float | None = None
     _awake_s: float = 0.0
@@ -46,13 +51,18 @@ class CompanionGate:
         if stamp_s > 0.0 and not stamp_s < self.setpoint_stamp_s:
             self.setpoint_stamp_s = stamp_s
 
+    def mode(self, flown: bool) -> None:
+        """The firmware's heartbeat: armed in the mode a companion flies, or not."""
+        self.flown = flown
+
     def telemetry(self, stamp_s: float) -> None:
         if stamp_s > 0.0 and not stamp_s < self.firmware_now_s:
             self.firmware_now_s = stamp_s
 
     def may_advance(self, wall_s: float) -> bool:
         """Whether the world may take its next frame now (``wall_s``: a monotonic clock)."""
-        if self.lead_s <= 0.0 or math.isnan(self.setpoint_stamp_s) or self.setpoint_stamp_s == self._given_up_on:
+        if (self.lead_s <= 0.0 or not self.flown or math.isnan(self.setpoint_stamp_s)
+                or self.setpoint_stamp_s == self._given_up_on):
             return self._resume(wall_s)
         if not self.firmware_now_s >= self.setpoint_stamp_s + self.lead_s:
             return self._resume(wall_s)

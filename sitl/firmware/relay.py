@@ -13,8 +13,10 @@ from __future__ import annotations
 import socket
 import struct
 from collections.abc import Callable
+from typing import NamedTuple
 
-__all__ = ["frames", "stamps", "for_component", "UdpRelay", "TcpRelay", "SETPOINTS", "CLOCKS_MS", "CLOCKS_US"]
+__all__ = ["Frame", "frames", "stamps", "flown_by_companion", "for_component", "UdpRelay", "TcpRelay", "SETPOINTS",
+           "CLOCKS_MS", "CLOCKS_US"]
 
 SETPOINTS = frozenset({82, 84, 86})
 """SET_ATTITUDE_TARGET, SET_POSITION_TARGET_LOCAL_NED, SET_POSITION_TARGET_GLOBAL_INT: time_boot_ms first"""
@@ -28,9 +30,16 @@ _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
 
 
-def frames(buf: bytes | bytearray) -> tuple[list[tuple[int, bytes]], int]:
-    """The MAVLink frames at the start of ``buf`` as ``(msgid, payload)`` and how many bytes they
-    (and any garbage between them) take; an incomplete frame at the end is left."""
+class Frame(NamedTuple):
+    msgid: int
+    payload: bytes
+    compid: int
+    """the sending component"""
+
+
+def frames(buf: bytes | bytearray) -> tuple[list[Frame], int]:
+    """The MAVLink frames at the start of ``buf`` and how many bytes they (and any garbage between
+    them) take; an incomplete frame at the end is left."""
     out = []
     i, n = 0, len(buf)
     while i < n:
@@ -43,7 +52,7 @@ def frames(buf: bytes | bytearray) -> tuple[list[tuple[int, bytes]], int]:
             if end > n:
                 break
             msgid = buf[i + 7] | buf[i + 8] << 8 | buf[i + 9] << 16
-            out.append((msgid, bytes(buf[i + 10:i + 10 + length])))
+            out.append(Frame(msgid, bytes(buf[i + 10:i + 10 + length]), buf[i + 6]))
             i = end
         elif magic == 0xFE:
             if n - i < 6:
@@ -52,18 +61,18 @@ def frames(buf: bytes | bytearray) -> tuple[list[tuple[int, bytes]], int]:
             end = i + 8 + length
             if end > n:
                 break
-            out.append((buf[i + 5], bytes(buf[i + 6:i + 6 + length])))
+            out.append(Frame(buf[i + 5], bytes(buf[i + 6:i + 6 + length]), buf[i + 4]))
             i = end
         else:
             i += 1  # not a frame start: skip
     return out, i
 
 
-def stamps(msgs: list[tuple[int, bytes]], kinds_ms: frozenset[int], kinds_us: frozenset[int] = frozenset()) -> float:
+def stamps(msgs: list[Frame], kinds_ms: frozenset[int], kinds_us: frozenset[int] = frozenset()) -> float:
     """The newest stamp [s] among ``msgs`` of the given kinds (time_boot_ms or time_usec first in
     the payload; MAVLink 2 trims trailing zeros, so a short payload is padded); 0 if none."""
     newest = 0.0
-    for msgid, payload in msgs:
+    for msgid, payload, _ in msgs:
         if msgid in kinds_ms:
             t = _U32.unpack((payload + b"\0\0\0\0")[:4])[0] * 1e-3
         elif msgid in kinds_us:
@@ -100,7 +109,20 @@ def for_component(buf: bytes | bytearray, compid: int) -> tuple[bytes, bytes]:
     return bytes(mine), bytes(rest)
 
 
+def flown_by_companion(msgs: list[Frame], offboard: Callable[[int], bool]) -> bool | None:
+    """From the newest HEARTBEAT of the autopilot (component 1) among ``msgs``: whether it is armed
+    in the mode a companion flies (``offboard`` of its custom_mode: PX4's OFFBOARD, ArduCopter's
+    GUIDED); None if there is none."""
+    found = None
+    for msgid, payload, compid in msgs:
+        if msgid == 0 and compid == 1:
+            p = payload + bytes(9)
+            found = bool(p[6] & 128) and offboard(_U32.unpack_from(p)[0])
+    return found
+
+
 OnStamp = Callable[[float], None]
+OnMode = Callable[[bool], None]
 Local = Callable[[bytes], list[bytes]]
 """the bridge's own component: frames addressed to it in, its replies out"""
 
@@ -111,8 +133,12 @@ class UdpRelay:
     firmware's address."""
 
     def __init__(self, firmware_side: tuple[str, int], companion: tuple[str, int], on_setpoint: OnStamp,
-                 on_telemetry: OnStamp, local: tuple[int, Local] | None = None) -> None:
+                 on_telemetry: OnStamp, local: tuple[int, Local] | None = None,
+                 on_mode: tuple[Callable[[int], bool], OnMode] | None = None) -> None:
         self.local = local
+        self.on_mode = on_mode
+        """(is this custom_mode the companion's, callback): the firmware's heartbeats say whether a
+        companion is flying it (armed, in OFFBOARD or GUIDED)"""
         """(component id, handler): what the companion addresses to that component is answered
         here instead of through the firmware's forwarding (PX4 keeps two forwarded messages a link)"""
         self.fw_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -140,9 +166,14 @@ class UdpRelay:
                 continue
             if sock is self.fw_sock:
                 self.firmware_addr = addr
-                t = stamps(frames(data)[0], CLOCKS_MS, CLOCKS_US)
+                msgs = frames(data)[0]
+                t = stamps(msgs, CLOCKS_MS, CLOCKS_US)
                 if t:
                     self.on_telemetry(t)
+                if self.on_mode is not None:
+                    flown = flown_by_companion(msgs, self.on_mode[0])
+                    if flown is not None:
+                        self.on_mode[1](flown)
                 self._send(self.co_sock, data, self.companion, "down")
             elif self.firmware_addr is not None:
                 t = stamps(frames(data)[0], SETPOINTS)
@@ -179,9 +210,11 @@ class TcpRelay:
     the firmware at ``firmware``, bytes relayed both ways."""
 
     def __init__(self, listen: tuple[str, int], firmware: tuple[str, int], on_setpoint: OnStamp,
-                 on_telemetry: OnStamp, local: tuple[int, Local] | None = None) -> None:
+                 on_telemetry: OnStamp, local: tuple[int, Local] | None = None,
+                 on_mode: tuple[Callable[[int], bool], OnMode] | None = None) -> None:
         self.local = local
-        """as :class:`UdpRelay`'s"""
+        self.on_mode = on_mode
+        """both as :class:`UdpRelay`'s"""
         self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.server.bind(listen)
@@ -235,6 +268,10 @@ class TcpRelay:
         t = stamps(msgs, SETPOINTS) if up else stamps(msgs, CLOCKS_MS, CLOCKS_US)
         if t:
             (self.on_setpoint if up else self.on_telemetry)(t)
+        if not up and self.on_mode is not None:
+            flown = flown_by_companion(msgs, self.on_mode[0])
+            if flown is not None:
+                self.on_mode[1](flown)
         if not up:
             whole += self._pending.pop(other, b"")  # between whole frames
         elif self.local is not None:

@@ -92,7 +92,8 @@ def test_setpoint_and_telemetry_stamps_are_read_from_the_headers() -> None:
     imu = MAV.highres_imu_encode(778500000, *([0.0] * 13), 0x7).pack(MAV)
     hb = MAV.heartbeat_encode(2, 12, 0, 0, 4).pack(MAV)
     msgs, used = frames(hb + att + sp + imu)
-    assert used == len(hb + att + sp + imu) and [m for m, _ in msgs] == [0, 30, 82, 105]
+    assert used == len(hb + att + sp + imu) and [m.msgid for m in msgs] == [0, 30, 82, 105]
+    assert [m.compid for m in msgs] == [1, 1, 190, 1]
     assert stamps(msgs, SETPOINTS) == pytest.approx(123.456)
     assert stamps(msgs, CLOCKS_MS, CLOCKS_US) == pytest.approx(778.5)
 
@@ -102,7 +103,7 @@ def test_a_frame_cut_by_the_stream_waits_for_its_end_and_garbage_is_skipped() ->
     msgs, used = frames(b"\x00junk" + att[:7])
     assert msgs == [] and used == 5
     msgs, used = frames(att[:7] + att[7:])
-    assert [m for m, _ in msgs] == [30] and used == len(att)
+    assert [m.msgid for m in msgs] == [30] and used == len(att)
 
 
 def test_a_stamp_of_zero_trimmed_from_a_mavlink2_payload_reads_as_zero() -> None:
@@ -250,3 +251,30 @@ def test_the_relay_hands_what_is_addressed_to_the_plant_to_it_and_passes_the_res
     mine, rest = for_component(to_autopilot + to_plant + sp + read_plant + broadcast, PLANT_COMPID)
     assert mine == to_plant + read_plant and rest == to_autopilot + sp + broadcast
     assert for_component(to_plant[:9], PLANT_COMPID) == (b"", to_plant[:9])  # cut: passed on as it came
+
+
+def test_the_world_waits_only_while_the_firmware_says_a_companion_flies_it() -> None:
+    """A companion that commanded a landing stops streaming on purpose: the firmware's heartbeat
+    (disarmed, or another mode than OFFBOARD / GUIDED) releases the world at once, without the
+    3 s wait for a stream that is gone."""
+    from sitl.firmware.relay import flown_by_companion
+
+    gate = CompanionGate(lead_s=0.025)
+    gate.setpoint(10.0)
+    gate.telemetry(10.03)
+    assert not gate.may_advance(0.0)
+    offboard = 6 << 16
+    landing = MAV.heartbeat_encode(2, 12, 128 | 1, (4 << 16) | (6 << 24), 4).pack(MAV)
+    flying = MAV.heartbeat_encode(2, 12, 128 | 1, offboard, 4).pack(MAV)
+    parked = MAV.heartbeat_encode(2, 12, 1, offboard, 4).pack(MAV)  # PX4 back in OFFBOARD after a disarm
+    plant = mavlink.MAVLink(None, srcSystem=1, srcComponent=PLANT_COMPID)
+    other = plant.heartbeat_encode(0, 8, 0, 0, 4).pack(plant)
+    is_offboard = offboard.__eq__
+    assert flown_by_companion(frames(flying)[0], is_offboard) is True
+    assert flown_by_companion(frames(landing)[0], is_offboard) is False
+    assert flown_by_companion(frames(parked)[0], is_offboard) is False
+    assert flown_by_companion(frames(other)[0], is_offboard) is None  # not the autopilot's
+    gate.mode(flown_by_companion(frames(landing)[0], is_offboard))  # type: ignore[arg-type]
+    assert gate.may_advance(0.01)
+    gate.mode(True)
+    assert not gate.may_advance(0.02)
