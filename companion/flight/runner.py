@@ -207,6 +207,8 @@ class Flight:
                     result, message = "aborted", str(eg.exceptions[0])
                 if self.params.originals:  # the mission ended before it could put them back
                     await self._restore_params()
+        except LinkError as exc:  # opening the link: the port is taken, the device missing; nothing flew
+            result, message = "aborted", str(exc)
         finally:
             summary = self._summary(result, message)
             self.recorder.close(summary)

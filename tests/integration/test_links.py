@@ -44,3 +44,24 @@ def test_a_full_flight_over_serial_and_tcp(sitl, companion, link):
     hold = segments(c.flight_dir())["hold"]
     assert hold["rms_error_m"] < 0.03, hold
     assert bridge.frames_up > 1000 and bridge.frames_down > 1000
+
+
+def test_a_port_taken_by_another_program_is_one_line_and_nothing_flown(tmp_path):
+    """udpin:// on a port another program holds (a second companion, MAVProxy): the companion ends
+    at once with one line naming the port (it used to be a traceback), exit 1, no flight folder."""
+    import socket
+    import subprocess
+    import sys
+
+    from helpers.processes import ROOT, child_env
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as held:
+        held.bind(("0.0.0.0", 0))
+        port = held.getsockname()[1]
+        r = subprocess.run([sys.executable, "-m", "companion", "fly", "missions/hold.toml", "--connect",
+                            f"udpin://0.0.0.0:{port}", "--out", str(tmp_path), "--no-plots"], cwd=ROOT,
+                           capture_output=True, text=True, timeout=60, env=child_env())
+    lines = (r.stdout + r.stderr).strip().splitlines()
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+    assert lines[-1] == f"companion: aborted: cannot open UDP 0.0.0.0:{port}: Address already in use", lines
+    assert not any(tmp_path.iterdir())
