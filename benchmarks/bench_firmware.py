@@ -42,7 +42,7 @@ TILT_PARAM = {"px4": "MPC_TILTMAX_AIR", "ardupilot": "ATC_ANGLE_MAX"}
 
 
 def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float, out: Path,
-        firmware_params: dict[str, float], companion_args: tuple[str, ...] = ()) -> Path:
+        firmware_params: dict[str, float], companion_args: tuple[str, ...] = (), again: bool = True) -> Path:
     args = [f"--seed={seed}", *(f"--firmware-param={k}={v:g}" for k, v in firmware_params.items())]
     vehicle = FirmwareVehicle(firmware, *args, speedup=speedup, instance=7)
     try:
@@ -54,6 +54,9 @@ def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float,
         vehicle.stop(timeout_s=30)
     folder = Path(r.stdout.strip().rsplit(" -> ", 1)[-1]) if " -> " in r.stdout else None
     if r.returncode != 0 or folder is None:
+        if "Address already in use" in r.stdout + r.stderr and again:
+            time.sleep(2.0)  # the previous flight's sockets are still closing: once more
+            return fly(firmware, mission, controller, seed, speedup, out, firmware_params, companion_args, False)
         raise RuntimeError(f"{firmware} {mission} {controller} seed {seed}: {r.stdout[-2000:]}{r.stderr[-2000:]}")
     return folder
 

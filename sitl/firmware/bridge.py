@@ -192,6 +192,7 @@ class Bridge:
                 "speedup": round(self.world.t / wall, 2) if wall > 0 else 0.0, "frames": self.stats.frames,
                 "firmware_late": self.stats.firmware_late, "lockstep": {"waits": g.waits,
                                                                         "waited_s": round(g.waited_s, 2),
-                                                                        "gave_up": g.gave_up},
+                                                                        "gave_up": g.gave_up,
+                                                                        "gave_up_at_s": g.gave_up_at_s},
                 "pace_re_anchored": self.pace.re_anchored, "plant_params": dict(self.component.stats),
                 "shadowed": sorted(self.component.shadowed)}

@@ -127,6 +127,7 @@ class Session:
                                             self.workdir, home)
             self.ports = {"companion": f"tcp://127.0.0.1:{aports.companion}",
                           "simulator": f"udp 127.0.0.1:{aports.json} (JSON)"}
+        relay.on_command = gate.command
         self.process.start()
 
     def run(self, stop: Any, duration_s: float | None = None) -> None:

@@ -9,8 +9,11 @@ as its own telemetry says, is less than ``lead_s`` past that stamp — one contr
 one telemetry interval so that the sample for the companion's next tick exists, plus a frame.
 
 The world waits only while the firmware says a companion flies it (armed, in OFFBOARD or GUIDED:
-its heartbeat, read by the relay): a companion that has handed the vehicle back (a landing, a
-hold) stops streaming on purpose. A stream silent for ``give_up_wall_s`` (3 s, as the bundled
+its heartbeat, read by the relay) and the companion has not sent a command since the firmware's
+last heartbeat: a companion that hands the vehicle back (a landing, a hold) stops streaming on purpose,
+and the firmware must run to act on the command (frozen, it would not even send the heartbeat
+that says so; the companion's own 3 s link watchdog then raced the give-up below). A stream
+silent for ``give_up_wall_s`` (3 s, as the bundled
 vehicle's lockstep) of wall time while awake is gone, not late: time runs on (the firmware's own
 offboard-loss failsafe must be able to act), until a newer setpoint arrives. A companion starved
 of CPU for a second on a busy host is late, not gone: with 1 s the world once ran on without it
@@ -21,7 +24,7 @@ Pure: the bridge passes the clocks; :mod:`.relay` extracts the stamps.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 __all__ = ["CompanionGate"]
 
@@ -37,6 +40,7 @@ class CompanionGate:
     """the firmware's newest time, from its telemetry"""
     flown: bool = True
     """the firmware is armed in the companion's mode (until its heartbeat says otherwise)"""
+    _commanded: bool = False
     _given_up_on: float = math.nan
     _waiting_since_wall: float | None = None
     _awake_s: float = 0.0
@@ -45,15 +49,24 @@ class CompanionGate:
     """times the world stopped for the companion"""
     waited_s: float = 0.0
     gave_up: int = 0
+    gave_up_at_s: list[float] = field(default_factory=list)
+    """the setpoint stamps given up on (the first few)"""
 
     def setpoint(self, stamp_s: float) -> None:
         """A setpoint arrived, computed from telemetry stamped ``stamp_s`` (0 or less: unstamped)."""
         if stamp_s > 0.0 and not stamp_s < self.setpoint_stamp_s:
             self.setpoint_stamp_s = stamp_s
 
+    def command(self) -> None:
+        """The companion sent a command (to land, to change mode): it may stop streaming on purpose,
+        and the firmware must run to act on it. The world runs on until the firmware's next
+        heartbeat says whether a companion still flies it."""
+        self._commanded = True
+
     def mode(self, flown: bool) -> None:
         """The firmware's heartbeat: armed in the mode a companion flies, or not."""
         self.flown = flown
+        self._commanded = False
 
     def telemetry(self, stamp_s: float) -> None:
         if stamp_s > 0.0 and not stamp_s < self.firmware_now_s:
@@ -61,7 +74,7 @@ class CompanionGate:
 
     def may_advance(self, wall_s: float) -> bool:
         """Whether the world may take its next frame now (``wall_s``: a monotonic clock)."""
-        if (self.lead_s <= 0.0 or not self.flown or math.isnan(self.setpoint_stamp_s)
+        if (self.lead_s <= 0.0 or not self.flown or self._commanded or math.isnan(self.setpoint_stamp_s)
                 or self.setpoint_stamp_s == self._given_up_on):
             return self._resume(wall_s)
         if not self.firmware_now_s >= self.setpoint_stamp_s + self.lead_s:
@@ -75,6 +88,8 @@ class CompanionGate:
         if self._awake_s > self.give_up_wall_s:
             self._given_up_on = self.setpoint_stamp_s
             self.gave_up += 1
+            if len(self.gave_up_at_s) < 10:
+                self.gave_up_at_s.append(round(self.setpoint_stamp_s, 3))
             return self._resume(wall_s)
         return False
 

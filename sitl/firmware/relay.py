@@ -23,6 +23,8 @@ SETPOINTS = frozenset({82, 84, 86})
 CLOCKS_MS = frozenset({30, 31, 32, 33})
 """ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED, GLOBAL_POSITION_INT: time_boot_ms first"""
 CLOCKS_US = frozenset({105, 331})
+COMMANDS = frozenset({75, 76})
+"""COMMAND_INT, COMMAND_LONG: a companion that commands (a landing, a mode) may stop streaming"""
 """HIGHRES_IMU, ODOMETRY: time_usec first"""
 TARGET_COMPONENT = {20: 3, 21: 1, 23: 5}
 """PARAM_REQUEST_READ, PARAM_REQUEST_LIST, PARAM_SET: where target_component sits in the payload"""
@@ -139,6 +141,8 @@ class UdpRelay:
         self.on_mode = on_mode
         """(is this custom_mode the companion's, callback): the firmware's heartbeats say whether a
         companion is flying it (armed, in OFFBOARD or GUIDED)"""
+        self.on_command: Callable[[], None] | None = None
+        """the companion sent a command"""
         """(component id, handler): what the companion addresses to that component is answered
         here instead of through the firmware's forwarding (PX4 keeps two forwarded messages a link)"""
         self.fw_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -176,7 +180,10 @@ class UdpRelay:
                         self.on_mode[1](flown)
                 self._send(self.co_sock, data, self.companion, "down")
             elif self.firmware_addr is not None:
-                t = stamps(frames(data)[0], SETPOINTS)
+                msgs = frames(data)[0]
+                if self.on_command is not None and any(m.msgid in COMMANDS for m in msgs):
+                    self.on_command()
+                t = stamps(msgs, SETPOINTS)
                 if t:
                     self.on_setpoint(t)
                 if self.local is not None:
@@ -215,6 +222,7 @@ class TcpRelay:
         self.local = local
         self.on_mode = on_mode
         """both as :class:`UdpRelay`'s"""
+        self.on_command: Callable[[], None] | None = None
         self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.server.bind(listen)
@@ -265,6 +273,8 @@ class TcpRelay:
         if len(buf) > 4096:  # never a frame: garbage, passed on as it came
             whole += bytes(buf)
             buf.clear()
+        if up and self.on_command is not None and any(m.msgid in COMMANDS for m in msgs):
+            self.on_command()
         t = stamps(msgs, SETPOINTS) if up else stamps(msgs, CLOCKS_MS, CLOCKS_US)
         if t:
             (self.on_setpoint if up else self.on_telemetry)(t)

@@ -278,3 +278,18 @@ def test_the_world_waits_only_while_the_firmware_says_a_companion_flies_it() -> 
     assert gate.may_advance(0.01)
     gate.mode(True)
     assert not gate.may_advance(0.02)
+
+
+def test_a_command_from_the_companion_releases_the_world_until_the_firmwares_next_heartbeat() -> None:
+    gate = CompanionGate(lead_s=0.025)
+    gate.setpoint(10.0)
+    gate.telemetry(10.03)
+    assert not gate.may_advance(0.0)
+    gate.command()  # MAV_CMD_NAV_LAND: no more setpoints, on purpose
+    gate.setpoint(10.01)  # one more went out with it
+    assert gate.may_advance(0.01) and gate.gave_up == 0
+    gate.mode(False)  # the heartbeat: landing
+    assert gate.may_advance(0.02)
+    gate.mode(True)  # a command that changed nothing: lockstep again
+    gate.telemetry(10.06)
+    assert not gate.may_advance(0.03)
