@@ -6,8 +6,11 @@
     kill -USR1 <pid>                                      # an outage of --signal-outage-s, now
 
 Put it between a client and a vehicle: the client connects to ``--listen``, the relay forwards
-to ``--to`` from its own socket and sends the vehicle's replies back to the client that spoke
-last. "up" is client -> vehicle (setpoints, commands), "down" is vehicle -> client (telemetry).
+to ``--to`` from its own socket and sends the vehicle's replies back to the client. The client is
+``--client HOST:PORT`` if given, else the first address that speaks; another sender is dropped
+and counted (``strangers``) — it may neither reach the vehicle nor divert its downlink — unless
+the client has been silent for ``--repin-s`` (3 s: a companion restarted on another port takes
+over). "up" is client -> vehicle (setpoints, commands), "down" is vehicle -> client (telemetry).
 
 Per datagram and direction, in this order: an outage drops it; it is lost with probability
 ``loss``; otherwise it is delivered after ``delay_ms`` plus a uniform jitter in
@@ -93,8 +96,15 @@ class Relay:
     """The relay's state and one select loop; :meth:`run` until :meth:`stop`."""
 
     def __init__(self, listen: tuple[str, int], to: tuple[str, int], up: Impairment, down: Impairment,
-                 outages: Sequence[Outage] = (), seed: int = 0, signal_outage_s: float = 2.0) -> None:
+                 outages: Sequence[Outage] = (), seed: int = 0, signal_outage_s: float = 2.0,
+                 client: tuple[str, int] | None = None, repin_s: float = 3.0) -> None:
         self.to = to
+        self.fixed_client = client
+        self.repin_s = repin_s
+        self.client_heard = -float("inf")
+        self.strangers = 0
+        """datagrams from another sender than the client: dropped"""
+        self.repinned = 0
         self.client_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.client_side.bind(listen)
         self.vehicle_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -109,7 +119,7 @@ class Relay:
         self.down = _Direction("down", down, random.Random(f"{seed}:down"))
         self.outages: list[Outage] = list(outages)
         self.signal_outage_s = signal_outage_s
-        self.client: tuple[str, int] | None = None
+        self.client: tuple[str, int] | None = client
         self.t0: float | None = None
         self._queue: list[tuple[float, int, bool, bytes]] = []  # (due, seq, upward, data)
         self._seq = 0
@@ -180,9 +190,22 @@ class Relay:
                 return
             except OSError:
                 continue
-            if upward:
-                self.client = addr
+            if upward and not self._from_client(addr, now):
+                self.strangers += 1
+                continue
             self._schedule(self.up if upward else self.down, data, kernel_arrival(anc, now))
+
+    def _from_client(self, addr: tuple[str, int], now: float) -> bool:
+        """Whether a datagram from ``addr`` is the client's (pinning the first sender, or a new one
+        after the client's silence)."""
+        if addr != self.client:
+            if self.fixed_client is not None or now - self.client_heard <= self.repin_s:
+                return False
+            if self.client is not None:
+                self.repinned += 1
+            self.client = addr
+        self.client_heard = now
+        return True
 
     def run(self) -> None:
         sel = selectors.DefaultSelector()
@@ -202,6 +225,8 @@ class Relay:
 
     def report(self) -> dict:
         return {"up": self.up.counts, "down": self.down.counts, "max_queue": self.max_queue,
+                "client": list(self.client) if self.client else None, "strangers": self.strangers,
+                "repinned": self.repinned,
                 "late_ms": percentiles_ms(self.late_s) or {"p50": 0.0, "p99": 0.0, "max": 0.0, "n": 0},
                 "outages": [dataclasses.asdict(o) for o in self.outages],
                 "impairment": {"up": dataclasses.asdict(self.up.imp), "down": dataclasses.asdict(self.down.imp)}}
@@ -264,11 +289,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--outage", type=_outage, action="append", default=[], metavar="START:DURATION[:DIR]")
     ap.add_argument("--signal-outage-s", type=float, default=2.0, help="length of the outage SIGUSR1 starts")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--client", type=_address, default=None,
+                    help="the only client (default: the first sender; another is taken after --repin-s of silence)")
+    ap.add_argument("--repin-s", type=float, default=3.0, help="client silence after which a new sender is the client")
     args = ap.parse_args(argv)
     try:
         base = Impairment(args.loss, args.delay_ms, args.jitter_ms, args.duplicate, 1.0, args.reorder, args.reorder_ms)
         up, down = _overrides(base, args.up, "--up"), _overrides(base, args.down, "--down")
-        relay = Relay(args.listen, args.to, up, down, args.outage, args.seed, args.signal_outage_s)
+        if not args.repin_s > 0:
+            raise ValueError(f"--repin-s {args.repin_s:g}: expected a positive number of seconds")
+        relay = Relay(args.listen, args.to, up, down, args.outage, args.seed, args.signal_outage_s, args.client,
+                      args.repin_s)
     except (ValueError, OSError) as exc:
         print(f"sitl-relay: {exc}", file=sys.stderr)
         return 2

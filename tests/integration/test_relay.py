@@ -145,3 +145,60 @@ def test_bad_options_are_refused_with_a_clear_message(capsys):
     assert "loss must be a probability" in capsys.readouterr().err
     with pytest.raises(SystemExit, match="expected KEY=VALUE"):
         main(["--listen", "127.0.0.1:0", "--up", "lossy=0.1"])
+
+
+def test_a_stranger_neither_reaches_the_vehicle_nor_diverts_the_downlink():
+    """The first sender is the client; 2,657 heartbeats from another address are dropped and
+    counted, and the vehicle's replies still go to the client (they used to follow whoever spoke
+    last, and the companion behind the relay aborted). After the client's silence (--repin-s) a
+    new sender takes over: a companion restarted on another port."""
+    import socket
+    import threading
+    import time
+
+    from sitl.netem.relay import Impairment, Relay
+
+    vehicle = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    vehicle.bind(("127.0.0.1", 0))
+    vehicle.settimeout(2.0)
+    relay = Relay(("127.0.0.1", 0), vehicle.getsockname(), Impairment(), Impairment(), repin_s=0.5)
+    thread = threading.Thread(target=relay.run, daemon=True)
+    thread.start()
+    client, stranger, later = (socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(3))
+    for s in (client, stranger, later):
+        s.bind(("127.0.0.1", 0))
+        s.settimeout(2.0)
+    try:
+        client.sendto(b"client", relay.address)
+        assert vehicle.recvfrom(100)[0] == b"client"
+        for k in range(2657):
+            stranger.sendto(b"stranger", relay.address)
+            client.sendto(b"client", relay.address)  # the client keeps talking
+            if k % 50 == 0:
+                time.sleep(0.002)  # within what the sockets' buffers hold
+        n = 0
+        vehicle.settimeout(0.3)
+        try:
+            while True:
+                assert vehicle.recvfrom(100)[0] == b"client"
+                n += 1
+        except TimeoutError:
+            pass
+        relay_side = relay.vehicle_side.getsockname()
+        vehicle.sendto(b"telemetry", relay_side)
+        assert client.recvfrom(100)[0] == b"telemetry"
+        # every stranger's datagram the relay read was dropped; only the client's reached the vehicle
+        up = relay.up.counts
+        assert relay.strangers > 2000 and up["received"] > 2000 and up["forwarded"] == up["received"] and n > 0, \
+            (relay.strangers, dict(up), n)
+        time.sleep(0.7)  # the client falls silent longer than --repin-s
+        later.sendto(b"restarted", relay.address)
+        vehicle.settimeout(2.0)
+        assert vehicle.recvfrom(100)[0] == b"restarted"
+        vehicle.sendto(b"telemetry", relay_side)
+        assert later.recvfrom(100)[0] == b"telemetry" and relay.repinned == 1
+    finally:
+        relay.stop()
+        thread.join(2)
+        for s in (vehicle, client, stranger, later):
+            s.close()
