@@ -119,6 +119,11 @@ class SegmentStats:
         return d
 
 
+FLUSH_INTERVAL_S = 0.25
+"""the record is handed to the operating system at least this often (wall time): a companion killed
+outright (kill -9, a crash) loses at most the last quarter second of its record"""
+
+
 @dataclass
 class FlightRecorder:
     folder: Path
@@ -139,6 +144,15 @@ class FlightRecorder:
         self.rows = 0
         self._health: IO[str] | None = None
         self._trail = ReferenceTrail()
+        self._flushed = self._wall0
+
+    def _flush_due(self) -> None:
+        """Hand what is buffered to the operating system every FLUSH_INTERVAL_S."""
+        now = time.monotonic()
+        if now - self._flushed >= FLUSH_INTERVAL_S:
+            self._flushed = now
+            self._csv_file.flush()
+            self._tlog.flush()
 
     def _fail(self, exc: OSError) -> None:
         """Stop recording (the flight goes on); say so once."""
@@ -157,6 +171,7 @@ class FlightRecorder:
             return
         try:
             self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + datagram)
+            self._flush_due()
         except OSError as exc:
             self._fail(exc)
 
@@ -226,6 +241,7 @@ class FlightRecorder:
                 *(f"{x:.5g}" for x in (*p, *v, *ref, *q, *sp, *thrust, *force, thrust_max_n, thrust_max_est_n)),
                 f"{state.t_pos:.4f}", f"{err:.5g}",
             ))
+            self._flush_due()
         except OSError as exc:
             self._fail(exc)
             return

@@ -400,3 +400,31 @@ def test_after_its_own_stall_the_companion_never_cancels_the_failsafe_landing(si
     assert not report["armed"]
     assert any("offboard lost" in text for _, text in report["events"]), report["events"]
     assert not any("cleared" in text for _, text in report["events"]), report["events"]
+
+
+def test_a_companion_killed_outright_loses_at_most_a_quarter_second_of_its_record(sitl, companion):
+    """kill -9 mid-flight: the flight record (timeseries.csv and traffic.tlog) is handed to the
+    operating system every 0.25 s of wall time (recorder.FLUSH_INTERVAL_S), so what is on disk
+    reaches within that (and a scheduling margin of 0.15 s) of the kill. Flown at real time, where
+    the 64 kB buffers used to hold the last ~2 s (0.2 s at 4x)."""
+    from pymavlink import mavutil
+
+    from companion.flight.recorder import FLUSH_INTERVAL_S
+
+    s = sitl(*WAIT, speedup=1.0)
+    c = companion("missions/hover45.toml", s.url)
+    c.wait_for("step hover", timeout=60)
+    time.sleep(2.0)
+    killed = time.time()
+    c.proc.kill()
+    c.proc.wait()
+    folder = max((p for p in c.out_dir.iterdir() if p.is_dir()), key=lambda p: p.stat().st_mtime)
+    log = mavutil.mavlink_connection(str(folder / "traffic.tlog"))
+    stamps = []
+    while (m := log.recv_match()) is not None:
+        stamps.append(m._timestamp)  # the tlog's wall stamp of the datagram
+    log.close()
+    assert killed - stamps[-1] < FLUSH_INTERVAL_S + 0.15, killed - stamps[-1]
+    rows = (folder / "timeseries.csv").read_text().splitlines()
+    last_wall = float(rows[-1].split(",")[1])
+    assert killed - (stamps[0] + last_wall) < FLUSH_INTERVAL_S + 0.15 + 0.1, (killed - stamps[0], last_wall)
