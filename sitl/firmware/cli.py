@@ -24,7 +24,6 @@ from pathlib import Path
 from typing import Any
 
 from companion.control.params import VehicleParams
-from companion.mavlink.modes import COPTER_MODES, px4_custom_mode
 from companion.mavlink.params import PLANT_COMPID
 from sitl.plant.geo import GeoOrigin
 from sitl.plant.nav_sensors import NavSensorParams
@@ -44,8 +43,6 @@ from .world import FirmwareWorld
 __all__ = ["FIRMWARES", "add_firmware_options", "run", "firmware_scenario", "Session"]
 
 FIRMWARES = ("px4", "ardupilot")
-PX4_OFFBOARD = px4_custom_mode("OFFBOARD")
-COPTER_GUIDED = COPTER_MODES["GUIDED"]
 DEFAULT_LAYOUT = "x"
 TELEMETRY_INTERVAL_S = 0.01
 """the companion asks for attitude and position at 100 Hz or more"""
@@ -108,8 +105,7 @@ class Session:
         if firmware == "px4":
             ports = Px4Ports(instance)
             relay: UdpRelay | TcpRelay = UdpRelay(("127.0.0.1", ports.relay), ("127.0.0.1", ports.companion),
-                                                  gate.setpoint, gate.telemetry, local,
-                                                  (lambda mode: mode == PX4_OFFBOARD, gate.mode))
+                                                  gate.setpoint, gate.telemetry, local, gate.heartbeat)
             plant = PlantSocket(ports.plant, ("127.0.0.1", ports.plant_firmware))
             self.bridge = Px4Bridge(world, component, plant, relay, gate, pace, ports=ports, vision=vision)
             self.process = Px4Process(build, ports, px4_parameters(scenario) | (firmware_params or {}), self.workdir)
@@ -119,7 +115,7 @@ class Session:
         else:
             aports = ArduPilotPorts(instance)
             relay = TcpRelay(("127.0.0.1", aports.companion), ("127.0.0.1", aports.serial0), gate.setpoint,
-                             gate.telemetry, local, (lambda mode: mode == COPTER_GUIDED, gate.mode))
+                             gate.telemetry, local, gate.heartbeat)
             plant = PlantSocket(aports.plant)
             self.bridge = ArduPilotBridge(world, component, plant, relay, gate, pace, ports=aports, vision=vision)
             home = f"{origin.lat_deg},{origin.lon_deg},{origin.alt_m},0"

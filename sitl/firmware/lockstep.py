@@ -8,16 +8,17 @@ from (the companion's ``time_boot_ms``), and the world may run while the firmwar
 as its own telemetry says, is less than ``lead_s`` past that stamp — one control period, plus
 one telemetry interval so that the sample for the companion's next tick exists, plus a frame.
 
-The world waits only while the firmware says a companion flies it (armed, in OFFBOARD or GUIDED:
-its heartbeat, read by the relay) and the companion has not sent a command since the firmware's
-last heartbeat: a companion that hands the vehicle back (a landing, a hold) stops streaming on purpose,
-and the firmware must run to act on the command (frozen, it would not even send the heartbeat
-that says so; the companion's own 3 s link watchdog then raced the give-up below). A stream
-silent for ``give_up_wall_s`` (3 s, as the bundled
-vehicle's lockstep) of wall time while awake is gone, not late: time runs on (the firmware's own
-offboard-loss failsafe must be able to act), until a newer setpoint arrives. A companion starved
-of CPU for a second on a busy host is late, not gone: with 1 s the world once ran on without it
-and PX4 never took OFFBOARD.
+The world waits only while the vehicle is armed (the firmware's heartbeat, read by the relay).
+A command from the companion (a landing, a hold, a mode) lets the world run to the firmware's
+next heartbeat: a companion that hands the vehicle back stops streaming on purpose, and the
+firmware must run to act on the command (frozen, it would not even send the heartbeat that says
+so, and the give-up below raced the companion's own 3 s link watchdog). If by that heartbeat the
+newest setpoint is more than ``STREAM_GAP_S`` old, the stream has ended and the world runs on
+until a newer one; if not (the switch to OFFBOARD, with the companion streaming on), lockstep
+goes on. A stream silent for ``give_up_wall_s`` (3 s, as the bundled vehicle's lockstep) of wall
+time while awake is gone, not late: time runs on (the firmware's own offboard-loss failsafe must
+be able to act), until a newer setpoint arrives. A companion starved of CPU for a second on a busy
+host is late, not gone: with 1 s the world once ran on without it.
 Pure: the bridge passes the clocks; :mod:`.relay` extracts the stamps.
 """
 
@@ -26,7 +27,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["CompanionGate"]
+__all__ = ["CompanionGate", "STREAM_GAP_S"]
+
+STREAM_GAP_S = 0.1
+"""a stream whose newest setpoint is older than this (firmware time) at a heartbeat has ended"""
 
 
 @dataclass
@@ -38,8 +42,8 @@ class CompanionGate:
     """firmware time of the telemetry the newest setpoint was computed from"""
     firmware_now_s: float = math.nan
     """the firmware's newest time, from its telemetry"""
-    flown: bool = True
-    """the firmware is armed in the companion's mode (until its heartbeat says otherwise)"""
+    armed: bool = True
+    """the firmware's heartbeat says armed (until one says otherwise)"""
     _commanded: bool = False
     _given_up_on: float = math.nan
     _waiting_since_wall: float | None = None
@@ -59,14 +63,16 @@ class CompanionGate:
 
     def command(self) -> None:
         """The companion sent a command (to land, to change mode): it may stop streaming on purpose,
-        and the firmware must run to act on it. The world runs on until the firmware's next
-        heartbeat says whether a companion still flies it."""
+        and the firmware must run to act on it, to its next heartbeat."""
         self._commanded = True
 
-    def mode(self, flown: bool) -> None:
-        """The firmware's heartbeat: armed in the mode a companion flies, or not."""
-        self.flown = flown
-        self._commanded = False
+    def heartbeat(self, armed: bool) -> None:
+        """The firmware's heartbeat: armed or not; after a command, whether the stream goes on."""
+        self.armed = armed
+        if self._commanded:
+            self._commanded = False
+            if self.setpoint_stamp_s < self.firmware_now_s - STREAM_GAP_S:
+                self._given_up_on = self.setpoint_stamp_s  # handed back: runs on until a newer setpoint
 
     def telemetry(self, stamp_s: float) -> None:
         if stamp_s > 0.0 and not stamp_s < self.firmware_now_s:
@@ -74,7 +80,7 @@ class CompanionGate:
 
     def may_advance(self, wall_s: float) -> bool:
         """Whether the world may take its next frame now (``wall_s``: a monotonic clock)."""
-        if (self.lead_s <= 0.0 or not self.flown or self._commanded or math.isnan(self.setpoint_stamp_s)
+        if (self.lead_s <= 0.0 or not self.armed or self._commanded or math.isnan(self.setpoint_stamp_s)
                 or self.setpoint_stamp_s == self._given_up_on):
             return self._resume(wall_s)
         if not self.firmware_now_s >= self.setpoint_stamp_s + self.lead_s:

@@ -15,7 +15,7 @@ import struct
 from collections.abc import Callable
 from typing import NamedTuple
 
-__all__ = ["Frame", "frames", "stamps", "flown_by_companion", "for_component", "UdpRelay", "TcpRelay", "SETPOINTS",
+__all__ = ["Frame", "frames", "stamps", "armed", "for_component", "UdpRelay", "TcpRelay", "SETPOINTS",
            "CLOCKS_MS", "CLOCKS_US"]
 
 SETPOINTS = frozenset({82, 84, 86})
@@ -111,20 +111,18 @@ def for_component(buf: bytes | bytearray, compid: int) -> tuple[bytes, bytes]:
     return bytes(mine), bytes(rest)
 
 
-def flown_by_companion(msgs: list[Frame], offboard: Callable[[int], bool]) -> bool | None:
-    """From the newest HEARTBEAT of the autopilot (component 1) among ``msgs``: whether it is armed
-    in the mode a companion flies (``offboard`` of its custom_mode: PX4's OFFBOARD, ArduCopter's
-    GUIDED); None if there is none."""
+def armed(msgs: list[Frame]) -> bool | None:
+    """Whether the newest HEARTBEAT of the autopilot (component 1) among ``msgs`` says armed; None
+    if there is none."""
     found = None
     for msgid, payload, compid in msgs:
         if msgid == 0 and compid == 1:
-            p = payload + bytes(9)
-            found = bool(p[6] & 128) and offboard(_U32.unpack_from(p)[0])
+            found = bool((payload + bytes(9))[6] & 128)
     return found
 
 
 OnStamp = Callable[[float], None]
-OnMode = Callable[[bool], None]
+OnHeartbeat = Callable[[bool], None]
 Local = Callable[[bytes], list[bytes]]
 """the bridge's own component: frames addressed to it in, its replies out"""
 
@@ -136,11 +134,10 @@ class UdpRelay:
 
     def __init__(self, firmware_side: tuple[str, int], companion: tuple[str, int], on_setpoint: OnStamp,
                  on_telemetry: OnStamp, local: tuple[int, Local] | None = None,
-                 on_mode: tuple[Callable[[int], bool], OnMode] | None = None) -> None:
+                 on_heartbeat: OnHeartbeat | None = None) -> None:
         self.local = local
-        self.on_mode = on_mode
-        """(is this custom_mode the companion's, callback): the firmware's heartbeats say whether a
-        companion is flying it (armed, in OFFBOARD or GUIDED)"""
+        self.on_heartbeat = on_heartbeat
+        """the firmware's heartbeat: armed or not"""
         self.on_command: Callable[[], None] | None = None
         """the companion sent a command"""
         """(component id, handler): what the companion addresses to that component is answered
@@ -174,10 +171,8 @@ class UdpRelay:
                 t = stamps(msgs, CLOCKS_MS, CLOCKS_US)
                 if t:
                     self.on_telemetry(t)
-                if self.on_mode is not None:
-                    flown = flown_by_companion(msgs, self.on_mode[0])
-                    if flown is not None:
-                        self.on_mode[1](flown)
+                if self.on_heartbeat is not None and (a := armed(msgs)) is not None:
+                    self.on_heartbeat(a)
                 self._send(self.co_sock, data, self.companion, "down")
             elif self.firmware_addr is not None:
                 msgs = frames(data)[0]
@@ -218,9 +213,9 @@ class TcpRelay:
 
     def __init__(self, listen: tuple[str, int], firmware: tuple[str, int], on_setpoint: OnStamp,
                  on_telemetry: OnStamp, local: tuple[int, Local] | None = None,
-                 on_mode: tuple[Callable[[int], bool], OnMode] | None = None) -> None:
+                 on_heartbeat: OnHeartbeat | None = None) -> None:
         self.local = local
-        self.on_mode = on_mode
+        self.on_heartbeat = on_heartbeat
         """both as :class:`UdpRelay`'s"""
         self.on_command: Callable[[], None] | None = None
         self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -278,10 +273,8 @@ class TcpRelay:
         t = stamps(msgs, SETPOINTS) if up else stamps(msgs, CLOCKS_MS, CLOCKS_US)
         if t:
             (self.on_setpoint if up else self.on_telemetry)(t)
-        if not up and self.on_mode is not None:
-            flown = flown_by_companion(msgs, self.on_mode[0])
-            if flown is not None:
-                self.on_mode[1](flown)
+        if not up and self.on_heartbeat is not None and (a := armed(msgs)) is not None:
+            self.on_heartbeat(a)
         if not up:
             whole += self._pending.pop(other, b"")  # between whole frames
         elif self.local is not None:

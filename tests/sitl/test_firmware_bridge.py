@@ -253,43 +253,45 @@ def test_the_relay_hands_what_is_addressed_to_the_plant_to_it_and_passes_the_res
     assert for_component(to_plant[:9], PLANT_COMPID) == (b"", to_plant[:9])  # cut: passed on as it came
 
 
-def test_the_world_waits_only_while_the_firmware_says_a_companion_flies_it() -> None:
-    """A companion that commanded a landing stops streaming on purpose: the firmware's heartbeat
-    (disarmed, or another mode than OFFBOARD / GUIDED) releases the world at once, without the
-    3 s wait for a stream that is gone."""
-    from sitl.firmware.relay import flown_by_companion
+def test_the_world_waits_only_while_the_vehicle_is_armed() -> None:
+    """PX4 returns to OFFBOARD after a disarm; a disarmed vehicle is never flown by a stream."""
+    from sitl.firmware.relay import armed
 
     gate = CompanionGate(lead_s=0.025)
     gate.setpoint(10.0)
     gate.telemetry(10.03)
     assert not gate.may_advance(0.0)
     offboard = 6 << 16
-    landing = MAV.heartbeat_encode(2, 12, 128 | 1, (4 << 16) | (6 << 24), 4).pack(MAV)
     flying = MAV.heartbeat_encode(2, 12, 128 | 1, offboard, 4).pack(MAV)
-    parked = MAV.heartbeat_encode(2, 12, 1, offboard, 4).pack(MAV)  # PX4 back in OFFBOARD after a disarm
+    parked = MAV.heartbeat_encode(2, 12, 1, offboard, 4).pack(MAV)
     plant = mavlink.MAVLink(None, srcSystem=1, srcComponent=PLANT_COMPID)
-    other = plant.heartbeat_encode(0, 8, 0, 0, 4).pack(plant)
-    is_offboard = offboard.__eq__
-    assert flown_by_companion(frames(flying)[0], is_offboard) is True
-    assert flown_by_companion(frames(landing)[0], is_offboard) is False
-    assert flown_by_companion(frames(parked)[0], is_offboard) is False
-    assert flown_by_companion(frames(other)[0], is_offboard) is None  # not the autopilot's
-    gate.mode(flown_by_companion(frames(landing)[0], is_offboard))  # type: ignore[arg-type]
+    other = plant.heartbeat_encode(0, 8, 128, 0, 4).pack(plant)
+    assert armed(frames(flying)[0]) is True and armed(frames(parked)[0]) is False
+    assert armed(frames(other)[0]) is None  # not the autopilot's
+    gate.heartbeat(False)
     assert gate.may_advance(0.01)
-    gate.mode(True)
+    gate.heartbeat(True)
     assert not gate.may_advance(0.02)
 
 
-def test_a_command_from_the_companion_releases_the_world_until_the_firmwares_next_heartbeat() -> None:
+def test_after_a_command_the_next_heartbeat_tells_a_handed_back_vehicle_from_a_stream_going_on() -> None:
+    """Landing: the command, one more setpoint, then silence: by the heartbeat the stream has
+    ended and the world runs on. Taking OFFBOARD: the command, and the stream goes on: lockstep."""
     gate = CompanionGate(lead_s=0.025)
     gate.setpoint(10.0)
-    gate.telemetry(10.03)
-    assert not gate.may_advance(0.0)
-    gate.command()  # MAV_CMD_NAV_LAND: no more setpoints, on purpose
-    gate.setpoint(10.01)  # one more went out with it
-    assert gate.may_advance(0.01) and gate.gave_up == 0
-    gate.mode(False)  # the heartbeat: landing
-    assert gate.may_advance(0.02)
-    gate.mode(True)  # a command that changed nothing: lockstep again
-    gate.telemetry(10.06)
-    assert not gate.may_advance(0.03)
+    gate.telemetry(10.02)
+    gate.command()
+    gate.setpoint(10.01)
+    gate.telemetry(10.5)
+    assert gate.may_advance(0.0)  # the firmware runs to its heartbeat
+    gate.heartbeat(True)
+    assert gate.may_advance(0.01) and gate.gave_up == 0  # handed back: runs on
+    gate.setpoint(20.0)  # a new stream
+    gate.telemetry(20.03)
+    assert not gate.may_advance(0.02)
+    gate.command()  # DO_SET_MODE OFFBOARD
+    gate.setpoint(20.02)
+    gate.telemetry(20.06)
+    assert gate.may_advance(0.03)
+    gate.heartbeat(True)  # the stream is fresh: lockstep goes on
+    assert not gate.may_advance(0.04)
