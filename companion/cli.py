@@ -19,6 +19,7 @@ or arguments, 3 vehicle link lost, 130 interrupted (after holding, landing and d
 from __future__ import annotations
 
 import argparse
+import math
 import asyncio
 import sys
 from pathlib import Path
@@ -126,6 +127,22 @@ def _keygen(args: argparse.Namespace) -> int:
     return 0
 
 
+def _positive(text: str) -> float:
+    """A finite number above zero (argparse: exit 2 with the option named)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f"expected a finite number above 0, got {text!r}")
+    return value
+
+
+def _non_negative(text: str) -> float:
+    value = _positive(text) if text.strip() not in ("0", "0.0") else 0.0
+    return value
+
+
 def _estimate(args: argparse.Namespace) -> int:
     from .estimate import estimate_force, plot, rms, write_csv
     from .logs import read_log
@@ -134,8 +151,8 @@ def _estimate(args: argparse.Namespace) -> int:
         series = read_log(args.log, args.columns, thrust_is_newtons=args.thrust_newtons, world_frame=args.world,
                           body_frame=args.body)
         est = estimate_force(series, args.mass, args.gamma, args.thrust_scale, args.method, args.motor_tau)
-    except (OSError, ValueError, RuntimeError) as exc:
-        print(f"companion: error: {exc}", file=sys.stderr)
+    except (OSError, ValueError, RuntimeError, ZeroDivisionError) as exc:
+        print(f"companion: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -201,11 +218,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     demo.set_defaults(func=_demo)
     est = sub.add_parser("estimate", help="the external force over a logged flight (ULog, tlog or CSV)")
     est.add_argument("log", help=".ulg (PX4), .tlog (MAVLink) or .csv/.csv.gz (with --columns)")
-    est.add_argument("--mass", type=float, required=True, help="vehicle mass [kg]")
-    est.add_argument("--thrust-scale", type=float, help="thrust [N] at normalised 1.0 (default: estimated)")
-    est.add_argument("--gamma", type=float, default=5.0, help="observer bandwidth [rad/s] (default 5)")
+    est.add_argument("--mass", type=_positive, required=True, help="vehicle mass [kg]")
+    est.add_argument("--thrust-scale", type=_positive, help="thrust [N] at normalised 1.0 (default: estimated)")
+    est.add_argument("--gamma", type=_positive, default=5.0, help="observer bandwidth [rad/s] (default 5)")
     est.add_argument("--method", choices=("auto", "accelerometer", "velocity"), default="auto")
-    est.add_argument("--motor-tau", type=float, default=0.0, help="rotor time constant [s] for logged commands")
+    est.add_argument("--motor-tau", type=_non_negative, default=0.0,
+                     help="rotor time constant [s] for logged commands")
     est.add_argument("--columns", help="CSV: FIELD=COLUMN,... (t,qw,qx,qy,qz,ax,ay,az,vx,vy,vz,thrust) or 'sitl'")
     est.add_argument("--thrust-newtons", action="store_true", help="CSV: the thrust column is in newtons")
     est.add_argument("--world", choices=("ned", "enu"), default="ned", help="CSV: world frame")

@@ -76,6 +76,17 @@ class FlightSeries:
             a = getattr(self, name)
             if a is not None and len(a) != n:
                 raise ValueError(f"{name} has {len(a)} samples, t has {n}")
+        where = f"{self.source}: " if self.source else ""
+        for name in ("t_s", "q", "thrust", "specific_force_body_m_s2", "vel_ned_m_s"):
+            a = getattr(self, name)
+            if a is not None and not np.all(np.isfinite(a)):
+                i = int(np.argmax(~np.isfinite(a).reshape(n, -1).all(axis=1)))
+                raise ValueError(f"{where}{name} is not finite at sample {i} (t = {self.t_s[i]:.3f} s)")
+        back = np.flatnonzero(np.diff(self.t_s) < 0)
+        if back.size:
+            i = int(back[0]) + 1
+            raise ValueError(f"{where}time goes backwards at sample {i} ({self.t_s[i]:.6f} s after "
+                             f"{self.t_s[i - 1]:.6f} s)")
 
 
 @dataclass(frozen=True)
@@ -203,7 +214,7 @@ def estimate_force(
         lagged = np.empty_like(thrust_n)
         lagged[0] = thrust_n[0]
         for k in range(1, len(t)):
-            a = 1.0 - math.exp(-(t[k] - t[k - 1]) / motor_time_constant_s)
+            a = 1.0 - math.exp(-max(t[k] - t[k - 1], 0.0) / motor_time_constant_s)
             lagged[k] = lagged[k - 1] + a * (thrust_n[k - 1] - lagged[k - 1])
         thrust_n = lagged
     force = thrust_force_ned(series.q, thrust_n)
@@ -213,8 +224,12 @@ def estimate_force(
         sf = _specific_force_ned(series)
         obs = ForceObserver(mass_kg, gains)
         for k in range(1, len(t)):
+            dt = float(t[k] - t[k - 1])
+            if dt <= 0.0:  # a repeated stamp (a vehicle waiting, a log writing twice): nothing new
+                out[k] = out[k - 1]
+                continue
             # the acceleration over step k-1 -> k was produced by the force of sample k-1
-            out[k] = obs.update(tuple(sf[k]), tuple(force[k - 1]), float(t[k] - t[k - 1]))  # type: ignore[arg-type]
+            out[k] = obs.update(tuple(sf[k]), tuple(force[k - 1]), dt)  # type: ignore[arg-type]
     else:
         v = series.vel_ned_m_s
         assert v is not None
@@ -222,7 +237,11 @@ def estimate_force(
         g = (0.0, 0.0, GRAVITY_M_S2)
         mom.update(tuple(v[0]), tuple(force[0]), g, 1.0)  # type: ignore[arg-type]
         for k in range(1, len(t)):
-            out[k] = mom.update(tuple(v[k]), tuple(force[k - 1]), g, float(t[k] - t[k - 1]))  # type: ignore[arg-type]
+            dt = float(t[k] - t[k - 1])
+            if dt <= 0.0:
+                out[k] = out[k - 1]
+                continue
+            out[k] = mom.update(tuple(v[k]), tuple(force[k - 1]), g, dt)  # type: ignore[arg-type]
     return ForceEstimate(t, out, scale, estimated, method, series.truth_force_ned_n)
 
 

@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 from typing import Mapping
 
@@ -171,7 +172,17 @@ def read_csv(path: str | Path, columns: Mapping[str, str], *, thrust_is_newtons:
             return None
         if name not in rows[0]:
             raise ValueError(f"{path}: no column {name!r} (for {field}); columns: {', '.join(rows[0])}")
-        return np.array([float(r[name]) for r in rows])
+        out = np.empty(len(rows))
+        for i, r in enumerate(rows):
+            cell = r.get(name)
+            try:
+                out[i] = float(cell)  # type: ignore[arg-type]
+            except (TypeError, ValueError):
+                out[i] = math.nan
+            if not math.isfinite(out[i]):  # a row cut short, a word, NaN or inf: named, never averaged in
+                what = "missing (the row is cut short)" if cell is None else f"{cell!r} is not a finite number"
+                raise ValueError(f"{path}: row {i + 2}, column {name!r}: {what}")
+        return out
 
     def vec3(*fields: str) -> Array | None:
         parts = [col(f) for f in fields]
@@ -184,6 +195,11 @@ def read_csv(path: str | Path, columns: Mapping[str, str], *, thrust_is_newtons:
     t = col("t")
     if t is None:
         raise ValueError("the column map needs t")
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise ValueError(f"{path}: row {i + 2}, column {columns['t']!r}: time goes backwards ({t[i]:g} after "
+                         f"{t[i - 1]:g})")
     q = vec3("qw", "qx", "qy", "qz")
     if q is None:
         raise ValueError("the column map needs qw, qx, qy, qz")
@@ -207,7 +223,24 @@ def read_csv(path: str | Path, columns: Mapping[str, str], *, thrust_is_newtons:
 
 
 def read_log(path: str | Path, columns: str | None = None, **csv_options: object) -> FlightSeries:
-    """By extension: .ulg, .tlog, .csv / .csv.gz (which needs ``columns``)."""
+    """By extension: .ulg, .tlog, .csv / .csv.gz (which needs ``columns``). Whatever the file holds,
+    a log that cannot be read is a ValueError naming it (the command line prints one line)."""
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{path}: is a directory, not a log")
+    if not p.is_file():
+        raise ValueError(f"{path}: no such file")
+    if p.stat().st_size == 0:
+        raise ValueError(f"{path}: the file is empty")
+    try:
+        return _read_log(path, columns, **csv_options)
+    except (ValueError, RuntimeError, OSError):
+        raise
+    except Exception as exc:  # a damaged file makes the parsers raise anything (pyulog, pymavlink)
+        raise ValueError(f"{path}: cannot be read as its extension says ({type(exc).__name__}: {exc})") from None
+
+
+def _read_log(path: str | Path, columns: str | None = None, **csv_options: object) -> FlightSeries:
     name = str(path).lower()
     if name.endswith(".ulg"):
         return read_ulog(path)

@@ -146,3 +146,60 @@ def test_the_cli_reads_the_px4_ulog_and_estimates_the_thrust_scale(tmp_path):
     from companion.estimate import estimate_thrust_scale
 
     assert estimate_thrust_scale(read_ulog(ULOG), 1.0) == pytest.approx(5.0, rel=0.05)
+
+
+HEADER = "t,qw,qx,qy,qz,ax,ay,az,thrust\n"
+COLUMNS = "t=t,qw=qw,qx=qx,qy=qy,qz=qz,ax=ax,ay=ay,az=az,thrust=thrust"
+
+
+def _hover_rows(n: int, dt: float = 0.01) -> list[str]:
+    return [f"{k * dt:.3f},1,0,0,0,0,0,-9.81,0.333" for k in range(n)]
+
+
+@pytest.mark.parametrize("name, content, says", [
+    ("empty.ulg", b"", "the file is empty"),
+    ("random.ulg", bytes(range(256)) * 12, "cannot be read"),
+    ("short.csv", (HEADER + "\n".join(_hover_rows(5)) + "\n0.05,1,0,0,0,0,0,-9.81\n").encode(),
+     "row 7, column 'thrust': missing (the row is cut short)"),
+    ("nan.csv", (HEADER + "\n".join(_hover_rows(5)) + "\n0.05,1,0,0,0,nan,0,-9.81,0.3\n").encode(),
+     "row 7, column 'ax': 'nan' is not a finite number"),
+    ("inf.csv", (HEADER + "\n".join(_hover_rows(5)) + "\n0.05,1,0,0,0,0,0,-9.81,inf\n").encode(),
+     "row 7, column 'thrust': 'inf' is not a finite number"),
+    ("back.csv", (HEADER + "\n".join(_hover_rows(5)) + "\n0.01,1,0,0,0,0,0,-9.81,0.3\n").encode(),
+     "row 7, column 't': time goes backwards (0.01 after 0.04)"),
+])
+def test_a_log_that_lies_is_refused_in_one_line_naming_where(tmp_path, capsys, name, content, says):
+    """Damaged or hostile input: one line naming the file (and the row and column of a CSV), exit
+    2 — never a traceback, never an estimate made of NaNs."""
+    path = tmp_path / name
+    path.write_bytes(content)
+    code = main(["estimate", str(path), "--mass", "0.63", "--columns", COLUMNS, "--thrust-scale", "18.56",
+                 "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and says in err[0] and str(path) in err[0], err
+
+
+def test_a_directory_named_like_a_log_is_refused(tmp_path, capsys):
+    (tmp_path / "x.tlog").mkdir()
+    assert main(["estimate", str(tmp_path / "x.tlog"), "--mass", "0.63"]) == 2
+    assert "is a directory" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("option, value", [("--mass", "nan"), ("--mass", "-1"), ("--mass", "0"), ("--gamma", "0"),
+                                           ("--thrust-scale", "0"), ("--motor-tau", "-0.1")])
+def test_impossible_numbers_are_refused(tmp_path, capsys, option, value):
+    args = ["estimate", str(tmp_path / "x.csv"), "--mass", "0.63", option, value]
+    with pytest.raises(SystemExit) as exc:
+        main(args)
+    assert exc.value.code == 2 and option in capsys.readouterr().err
+
+
+def test_repeated_stamps_are_no_new_information_not_a_division_by_zero(tmp_path):
+    """A vehicle that waits repeats its stamps (the bundled vehicle's .tlog does): the observer
+    holds its estimate over a zero step (it divided by zero before)."""
+    rows = _hover_rows(200)
+    rows = rows[:100] + [rows[99]] * 3 + rows[100:]
+    path = tmp_path / "repeat.csv"
+    path.write_text(HEADER + "\n".join(rows) + "\n")
+    est = estimate_force(read_csv(path, dict(p.split("=") for p in COLUMNS.split(","))), 0.63, 5.0, 18.56)
+    assert np.all(np.isfinite(est.force_ned_n))
