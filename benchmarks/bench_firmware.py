@@ -39,6 +39,7 @@ CONTROLLERS = ("ism_do", "pd_do", "pid", "autopilot")
 LABELS = {"ism_do": "ISM+DO", "pd_do": "PD+DO", "pid": "PID", "autopilot": "autopilot's own",
           "ism_do_shaped": "ISM+DO, ArduCopter's input shaping kept"}
 TILT_PARAM = {"px4": "MPC_TILTMAX_AIR", "ardupilot": "ATC_ANGLE_MAX"}
+FAILURES: list[str] = []
 
 
 def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float, out: Path,
@@ -53,6 +54,13 @@ def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float,
     finally:
         vehicle.stop(timeout_s=30)
     folder = Path(r.stdout.strip().rsplit(" -> ", 1)[-1]) if " -> " in r.stdout else None
+    if r.returncode != 0 and folder is not None and (folder / "segments.json").exists():
+        data = json.loads((folder / "segments.json").read_text())
+        failed = [s["name"] for s in data["segments"] if not s["ok"]]
+        print(f"  ({firmware} {mission} {controller} seed {seed}: the flight ended '{data['result']}' in "
+              f"{', '.join(failed) or '?'}: {data['message']})", flush=True)
+        FAILURES.append(f"{firmware} {Path(mission).stem} {controller} seed {seed}: {data['message']}")
+        return folder  # its segments before the failure still count; the table lists the failure
     if r.returncode != 0 or folder is None:
         if "Address already in use" in r.stdout + r.stderr and again:
             time.sleep(2.0)  # the previous flight's sockets are still closing: once more
@@ -63,7 +71,11 @@ def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float,
 
 def segments(folder: Path, names: tuple[str, ...]) -> dict[str, dict]:
     data = json.loads((folder / "segments.json").read_text())
-    return {s["name"]: s for s in data["segments"] if s["name"] in names}
+    found = {s["name"]: s for s in data["segments"] if s["name"] in names and s["rms_error_m"] is not None}
+    missing = set(names) - set(found)
+    if missing:
+        raise RuntimeError(f"{folder}: no {', '.join(sorted(missing))} segment: {data['message']}")
+    return found
 
 
 def main() -> int:
@@ -126,6 +138,10 @@ def main() -> int:
                 ratio = "- | -"
             label = LABELS.get(controller, controller.replace("autopilot_tilt", "autopilot's own, tilt ") + " deg")
             print(f"| {firmware} | {experiment} | {name} | {label} | {rms:.3f} | {peak:.3f} | {tilt:.0f} | {ratio} |")
+    if FAILURES:
+        print("\nflights that did not complete (their earlier segments are in the table):")
+        for f in FAILURES:
+            print(f"- {f}")
     if folders:
         draw(folders, args, Path(args.out) / "figures" / "firmware_experiments.png")
     return 0

@@ -19,7 +19,10 @@ from companion.control.vector import Real, Vec3, is_scalar, mat_t_vec, matvec, s
 
 depends_on(__file__)
 
-__all__ = ["PlantConst", "RigidBody", "Forces", "plant_const", "plant_step"]
+__all__ = ["PlantConst", "RigidBody", "Forces", "plant_const", "plant_step", "GROUND_SETTLE_S"]
+
+GROUND_SETTLE_S = 0.03
+"""time constant with which a vehicle resting on the ground settles level"""
 
 
 class PlantConst(NamedTuple):
@@ -146,21 +149,23 @@ def plant_step(c: PlantConst, s: RigidBody, rotor_cmd_rad_s: Rotors4, wind_ned_m
     )
     q = quat.integrate(q, om, dt_s)
     if not is_scalar(pos[2]) or pos[2] >= c.ground_z_m:  # a batch: element-wise, whoever is down
-        pos, vel, q, om, sf_body = _ground_contact(c, pos, vel, q, om, sf_body, thrust, rot, dt_s)
+        pos, vel, q, om, sf_body = _ground_contact(c, pos, vel, q, om, sf_body, thrust, rot, dt_s, s.q)
     return (RigidBody(pos, vel, q, om, (w1, w2, w3, w4)),
             Forces(sf_body, thrust, (t_rx, t_ry, t_rz), (hx, hy, hz), torque_dist))
 
 
 @jitable
 def _ground_contact(c: PlantConst, pos: Vec3, vel: Vec3, q: Quat, om: Vec3, sf_body: Vec3,
-                    thrust: Real, rot: object, dt_s: float) -> tuple[Vec3, Vec3, Quat, Vec3, Vec3]:
+                    thrust: Real, rot: object, dt_s: float, q_before: Quat) -> tuple[Vec3, Vec3, Quat, Vec3, Vec3]:
     """The ground holds the vehicle up. A body that reaches it sinking is decelerated at up to
     ``ground_decel_m_s2`` (it sinks a few millimetres meanwhile) and put back on the surface once
-    stopped; with thrust under the weight it rests, level, at its yaw, without horizontal motion
-    or rates. The accelerometer feels what the ground did: the change of velocity it imposed in
+    stopped; with thrust under the weight it rests at its yaw, without horizontal motion, and
+    settles level. The accelerometer feels what the ground did: the change of velocity it imposed in
     the step, ``R^T dv / dt``, on top of the other forces — at rest that is the reaction that
     replaces the missing lift (``-g`` along z_B), at a touchdown the deceleration that stopped
-    the descent. Element-wise for a batch."""
+    the descent. At rest the ground holds it against the rotors' torques and it settles level
+    from where the step began (``q_before``, :data:`GROUND_SETTLE_S`): its body rate, what the
+    gyro reads, is that settling. Element-wise for a batch."""
     ground = c.ground_z_m
     below = pos[2] >= ground
     resting = below & (thrust < c.weight_n)
@@ -173,8 +178,15 @@ def _ground_contact(c: PlantConst, pos: Vec3, vel: Vec3, q: Quat, om: Vec3, sf_b
     dv = ((stopped[0] - vel[0]) * k, (stopped[1] - vel[1]) * k, (stopped[2] - vel[2]) * k)
     felt = mat_t_vec(rot, dv)  # type: ignore[arg-type]
     sf_body = (sf_body[0] + felt[0], sf_body[1] + felt[1], sf_body[2] + felt[2])
-    level = quat.from_yaw(quat.to_euler(q)[2])
-    q = (where(resting, level[0], q[0]), where(resting, level[1], q[1]), where(resting, level[2], q[2]),
-         where(resting, level[3], q[3]))
-    om = (where(resting, 0.0, om[0]), where(resting, 0.0, om[1]), where(resting, 0.0, om[2]))
+    # a resting vehicle settles level on its legs within a few tens of milliseconds, turning at a
+    # rate the gyro reads (levelled at once, unseen, PX4's EKF2 kept a landing's 19 deg of tilt
+    # and its horizontal velocity ran away to 100 m/s on the ground); the ground holds it against
+    # the rotors' torques, so only the settling turns it
+    err = quat.log(quat.relative(q_before, quat.from_yaw(quat.to_euler(q_before)[2])))  # body axes, to level
+    k = 1.0 / GROUND_SETTLE_S
+    settle = (err[0] * k, err[1] * k, 0.0)
+    q_settled = quat.integrate(q_before, settle, dt_s)
+    q = (where(resting, q_settled[0], q[0]), where(resting, q_settled[1], q[1]), where(resting, q_settled[2], q[2]),
+         where(resting, q_settled[3], q[3]))
+    om = (where(resting, settle[0], om[0]), where(resting, settle[1], om[1]), where(resting, 0.0, om[2]))
     return pos, stopped, q, om, sf_body
