@@ -91,10 +91,15 @@ class PymavlinkLink(VehicleLink):
         self._command_lock = asyncio.Lock()
         """one command in flight at a time: an ACK names only the command id, not the request"""
         self._params: dict[str, asyncio.Future[float]] = {}
+        self._param_asked: dict[str, set[int]] = {}
+        """the components a parameter request went to that have not said they lack it (PARAM_ERROR):
+        one component's "no such parameter" ends the wait only when it was the last one asked"""
         self._param_types: dict[str, int] = {}
         self._param_owner: dict[str, int] = {}
         """which component serves each parameter: the autopilot's, or the simulated plant's
         (PLANT_COMPID, ``sitl --firmware``) for one the autopilot does not have"""
+        self._plant_heard = False
+        """the vehicle's system has a simulated plant's component (its heartbeat was heard)"""
         self._highres_seen = False
         self._ftp_reply: asyncio.Future[ftp.Packet] | None = None
         self._ftp_lock = asyncio.Lock()
@@ -230,6 +235,8 @@ class PymavlinkLink(VehicleLink):
         if kind == "HEARTBEAT":
             flavour = flavour_for(msg.autopilot)
             if flavour is None:
+                if st.sysid and src == st.sysid and comp == PLANT_COMPID:
+                    self._plant_heard = True
                 return  # a ground station or a component that is not an autopilot
             if st.sysid == 0:
                 st.sysid, st.compid, st.autopilot = src, comp, flavour.name
@@ -321,10 +328,12 @@ class PymavlinkLink(VehicleLink):
             # ArduPilot 4.7+ answers a read of a parameter it does not have, instead of silence
             if msg.target_system in (0, self.mav.srcSystem):
                 name = param_name(msg.param_id)
-                fut = self._params.get(name)
-                if fut is not None and not fut.done():
-                    fut.set_result(math.nan)
+                fut, asked = self._params.get(name), self._param_asked.get(name, set())
+                if fut is not None and not fut.done() and comp in asked:
+                    asked.discard(comp)
                     self.stats["param_errors"] += 1
+                    if not asked or (asked == {PLANT_COMPID} and not self._plant_heard):
+                        fut.set_result(math.nan)
         elif kind == "PARAM_VALUE":
             name = param_name(msg.param_id)
             if name not in st.params and len(st.params) >= MAX_PARAMS:
@@ -573,10 +582,14 @@ class PymavlinkLink(VehicleLink):
         for name, x in values.items():
             self._send(self.mav.named_value_float_encode(t_ms, name.encode()[:10], float(x)))
 
-    async def _param(self, name: str, send: Any, timeout_s: float = 1.0, retries: int = 3) -> float | None:
+    async def _param(self, name: str, send: Any, asked: set[int], timeout_s: float = 1.0, retries: int = 3
+                     ) -> float | None:
+        """Send (and resend) a request about ``name`` to the components ``asked`` until one answers
+        with its value, or every one of them has answered that it has no such parameter."""
         loop = asyncio.get_running_loop()
         fut: asyncio.Future[float] = loop.create_future()
         self._params[name] = fut
+        self._param_asked[name] = set(asked)
         try:
             for _ in range(retries):
                 send()
@@ -587,6 +600,7 @@ class PymavlinkLink(VehicleLink):
                 return None if math.isnan(value) else value  # NaN: PARAM_ERROR, no such parameter
         finally:
             self._params.pop(name, None)
+            self._param_asked.pop(name, None)
         return None
 
     async def get_param(self, name: str, timeout_s: float = 1.0, retries: int = 3) -> float | None:
@@ -600,7 +614,7 @@ class PymavlinkLink(VehicleLink):
         def ask() -> None:
             for compid in targets:
                 self._send(self.mav.param_request_read_encode(sysid, compid, name.encode("ascii"), -1))
-        return await self._param(name, ask, timeout_s, retries)
+        return await self._param(name, ask, set(targets), timeout_s, retries)
 
     async def set_param(self, name: str, value: float) -> float:
         """Set in the parameter's own type (known from a read: PX4 refuses a REAL32 write to an
@@ -615,7 +629,7 @@ class PymavlinkLink(VehicleLink):
         except ValueError as exc:
             raise LinkError(f"parameter {name}: {exc}") from None
         echoed = await self._param(name, lambda: self._send(self.mav.param_set_encode(
-            *target, name.encode("ascii"), wire, ptype)), retries=self.command_retries)
+            *target, name.encode("ascii"), wire, ptype)), {owner}, retries=self.command_retries)
         if echoed is None:
             raise LinkError(f"parameter {name} was not acknowledged")
         return echoed

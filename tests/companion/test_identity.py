@@ -80,3 +80,75 @@ def test_a_command_ack_counts_only_when_addressed_to_us_and_answering_a_command_
 
     result, not_ours, unasked = asyncio.run(main())
     assert result == 4 and not_ours == 1 and unasked == 1
+
+
+def _param_link(plant: bool):
+    """A link locked onto ArduCopter (sysid 1), with (or without) the simulated plant's component
+    heard, whose outgoing frames are kept instead of sent."""
+    link = PymavlinkLink("udpin://127.0.0.1:0", command_timeout_s=0.2, command_retries=2)
+    ap, sim = mav(1, 1), mav(1, 25)
+    link._received(heartbeat(ap, autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, custom_mode=4), PEER)
+    if plant:
+        link._received(sim.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(sim),
+                       PEER)
+    sent: list = []
+    link._send = sent.append
+    return link, ap, sim, sent
+
+
+def _param_error(ap, name: str) -> bytes:
+    return ap.param_error_encode(255, 191, name.encode(), -1, mavlink.MAV_PARAM_ERROR_DOES_NOT_EXIST).pack(ap)
+
+
+def test_the_autopilots_late_no_such_parameter_does_not_refuse_the_plants_write():
+    """ArduPilot answers PARAM_ERROR to a read of SIM_FORCE_X (not its parameter) after the plant
+    has answered it: arriving while the write to the plant waits for its echo, it must not end
+    that wait (a hover45 flight aborted 'parameter SIM_FORCE_X was not acknowledged' this way)."""
+    async def main():
+        link, ap, sim, sent = _param_link(plant=True)
+        stop = asyncio.Event()
+        reader = asyncio.create_task(link.run(stop))
+        await asyncio.sleep(0.02)
+        write = asyncio.create_task(link.set_param("SIM_FORCE_X", 6.0))
+        await asyncio.sleep(0.02)
+        asked = sorted(m.target_component for m in sent if m.get_type() == "PARAM_REQUEST_READ")
+        link._received(sim.param_value_encode(b"SIM_FORCE_X", 0.0, 9, 23, 6).pack(sim), PEER)
+        await asyncio.sleep(0.02)
+        link._received(_param_error(ap, "SIM_FORCE_X"), PEER)  # late, for the read
+        await asyncio.sleep(0.02)
+        sets = [(m.target_component, m.param_value) for m in sent if m.get_type() == "PARAM_SET"]
+        link._received(sim.param_value_encode(b"SIM_FORCE_X", 6.0, 9, 23, 6).pack(sim), PEER)
+        try:
+            echoed = await asyncio.wait_for(write, 5.0)
+        finally:
+            stop.set()
+            await reader
+        return asked, sets, echoed
+
+    asked, sets, echoed = asyncio.run(main())
+    assert asked == [1, 25]
+    assert sets == [(25, 6.0)]
+    assert echoed == 6.0
+
+
+def test_no_such_parameter_from_the_autopilot_ends_a_read_at_once_when_there_is_no_plant():
+    """Without a plant's component the autopilot's PARAM_ERROR is the whole answer: one request,
+    not the retries of a read nobody will answer."""
+    async def main():
+        link, ap, _, sent = _param_link(plant=False)
+        stop = asyncio.Event()
+        reader = asyncio.create_task(link.run(stop))
+        await asyncio.sleep(0.02)
+        read = asyncio.create_task(link.get_param("SIM_THRUST_MAX", 0.5, 3))
+        await asyncio.sleep(0.02)
+        link._received(_param_error(ap, "SIM_THRUST_MAX"), PEER)
+        try:
+            value = await asyncio.wait_for(read, 5.0)
+        finally:
+            stop.set()
+            await reader
+        return value, sum(m.get_type() == "PARAM_REQUEST_READ" for m in sent)
+
+    value, requests = asyncio.run(main())
+    assert value is None
+    assert requests == 2  # one request, to the autopilot and to a plant that may exist
