@@ -74,7 +74,7 @@ def segments(folder: Path, names: tuple[str, ...]) -> dict[str, dict]:
     found = {s["name"]: s for s in data["segments"] if s["name"] in names and s["rms_error_m"] is not None}
     missing = set(names) - set(found)
     if missing:
-        raise RuntimeError(f"{folder}: no {', '.join(sorted(missing))} segment: {data['message']}")
+        FAILURES.append(f"{folder.name}: no {', '.join(sorted(missing))} segment: {data['message']}")
     return found
 
 
@@ -126,16 +126,21 @@ def main() -> int:
     for (firmware, experiment, controller), runs in results.items():
         base = results.get((firmware, experiment, "autopilot"))
         for name in EXPERIMENTS[experiment][1]:
-            rms = statistics.median(r[name]["rms_error_m"] for r in runs)
-            peak = statistics.median(r[name]["peak_error_m"] for r in runs)
-            tilt = statistics.median(r[name]["peak_tilt_deg"] for r in runs)
-            ratio = ""
-            if base is not None and controller != "autopilot":
-                b_rms = statistics.median(r[name]["rms_error_m"] for r in base)
-                b_peak = statistics.median(r[name]["peak_error_m"] for r in base)
+            flown = [r[name] for r in runs if name in r]
+            if not flown:
+                continue
+            rms = statistics.median(r["rms_error_m"] for r in flown)
+            peak = statistics.median(r["peak_error_m"] for r in flown)
+            tilt = statistics.median(r["peak_tilt_deg"] for r in flown)
+            base_flown = [r[name] for r in base or [] if name in r]
+            if base_flown and controller != "autopilot":
+                b_rms = statistics.median(r["rms_error_m"] for r in base_flown)
+                b_peak = statistics.median(r["peak_error_m"] for r in base_flown)
                 ratio = f"{rms / b_rms:.2f} | {peak / b_peak:.2f}"
             else:
                 ratio = "- | -"
+            if len(flown) < len(args.seeds):
+                name += f" ({len(flown)} of {len(args.seeds)} seeds)"
             label = LABELS.get(controller, controller.replace("autopilot_tilt", "autopilot's own, tilt ") + " deg")
             print(f"| {firmware} | {experiment} | {name} | {label} | {rms:.3f} | {peak:.3f} | {tilt:.0f} | {ratio} |")
     if FAILURES:
