@@ -105,9 +105,6 @@ def _firmware(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         if getattr(args, option) != default:
             ap.error(f"--{option.replace('_', '-')} is the bundled autopilot's: with --firmware the firmware's own "
                      f"ports, attitude loop and rules apply")
-    if args.signing_key_file:
-        ap.error("--signing-key-file with --firmware: set the key in the firmware itself (PX4: MAV_SIGN_CFG; "
-                 "ArduPilot: SETUP_SIGNING); the bridge relays signed frames unchanged")
     try:
         scenario = load_scenario(args.scenario) if args.scenario else Scenario(name="sitl")
     except (ConfigError, OSError, ValueError) as exc:

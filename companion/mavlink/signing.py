@@ -40,12 +40,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from pymavlink.dialects.v20 import all as every_dialect
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 __all__ = [
     "KEY_ENV", "SigningError", "SignatureCheck", "key_from_text", "read_key_file", "load_key", "fingerprint",
     "signing_timestamp", "enable_signing", "write_key_file", "is_signed", "ClockSigning", "REASONS",
-    "describe_rejections",
+    "describe_rejections", "FrameSigner", "VEHICLE_ACCEPTS_UNSIGNED",
 ]
 
 KEY_ENV = "MAVLINK_SIGNING_KEY"
@@ -57,6 +58,8 @@ FUTURE_WINDOW = 60 * UNITS_PER_S
 """no frame may be more than one minute ahead of our clock (it is refused, and not remembered)"""
 SIGNED_FLAG = 0x01
 SIGNATURE_LEN = 13
+VEHICLE_ACCEPTS_UNSIGNED = frozenset({"HEARTBEAT", "RADIO_STATUS"})
+"""what a vehicle with signing on takes unsigned: it changes nothing, and teaches no peer address"""
 
 
 class SigningError(ValueError):
@@ -217,10 +220,13 @@ class SignatureCheck:
     max_streams: int = 256
 
     def verdict(self, msg: Any) -> str | None:
-        buf = bytes(msg.get_msgbuf())
         header = msg.get_header()
-        if not (is_signed(msg) and buf[:1] == b"\xfd"):
-            return None if msg.get_type() in self.allow_unsigned else "unsigned"
+        return self.frame_verdict(bytes(msg.get_msgbuf()), msg.get_type(), header.srcSystem, header.srcComponent)
+
+    def frame_verdict(self, buf: bytes, name: str, sysid: int, compid: int) -> str | None:
+        """:meth:`verdict` of one whole frame as it came off the wire (``name``: its message's)."""
+        if not (buf[:1] == b"\xfd" and len(buf) > 2 and buf[2] & SIGNED_FLAG):
+            return None if name in self.allow_unsigned else "unsigned"
         if len(buf) < 12 + SIGNATURE_LEN:
             return "wrong key"
         link_id = buf[-13]
@@ -231,7 +237,7 @@ class SignatureCheck:
         now = signing_timestamp(self.clock())
         if timestamp > now + FUTURE_WINDOW:
             return "future timestamp"  # not stored: it must not push this stream (or any other) ahead
-        stream = (link_id, header.srcSystem, header.srcComponent)
+        stream = (link_id, sysid, compid)
         last = self.streams.get(stream)
         if last is not None:
             if timestamp <= last:
@@ -242,3 +248,47 @@ class SignatureCheck:
             self.streams.pop(min(self.streams, key=self.streams.__getitem__))
         self.streams[stream] = timestamp
         return None
+
+
+def _crc(header_and_payload: bytes, crc_extra: int) -> bytes:
+    crc = mavlink.x25crc(header_and_payload)
+    crc.accumulate(bytes([crc_extra]))
+    return struct.pack("<H", crc.crc)
+
+
+@dataclass
+class FrameSigner:
+    """Sign whole frames that were packed by someone else (a firmware behind a relay): each leaves as
+    a MAVLink 2 frame with the signed flag, its CRC recomputed, and a timestamp from ``clock`` that
+    strictly increases. A MAVLink 1 frame is carried over into MAVLink 2 first (a signature needs
+    the version 2 header); a message no dialect knows cannot be re-framed and is refused (None)."""
+
+    key: bytes
+    link_id: int = 0
+    clock: Callable[[], float] = _now
+    _last: int = 0
+
+    def timestamp(self) -> int:
+        self._last = max(self._last + 1, signing_timestamp(self.clock()))
+        return self._last
+
+    def sign(self, frame: bytes) -> bytes | None:
+        if frame[:1] == b"\xfd" and len(frame) >= 12:
+            length = frame[1]
+            header = bytearray(frame[:10])
+            msgid = frame[7] | frame[8] << 8 | frame[9] << 16
+            payload = frame[10:10 + length]
+        elif frame[:1] == b"\xfe" and len(frame) >= 8:
+            length, seq, sysid, compid, msgid = frame[1], frame[2], frame[3], frame[4], frame[5]
+            header = bytearray(b"\xfd" + bytes([length, 0, 0, seq, sysid, compid]) + struct.pack("<I", msgid)[:3])
+            payload = frame[6:6 + length]
+        else:
+            return None
+        entry = every_dialect.mavlink_map.get(msgid)
+        if entry is None or len(payload) != length:
+            return None
+        header[2] |= SIGNED_FLAG
+        body = bytes(header) + payload
+        body += _crc(body[1:], entry.crc_extra)
+        tail = bytes([self.link_id & 0xFF]) + struct.pack("<Q", self.timestamp())[:6]
+        return body + tail + hashlib.sha256(self.key + body + tail).digest()[:6]

@@ -33,7 +33,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.mavlink import ftp
 from companion.mavlink.events import CATALOGUE_PATH, encode_event_frame
-from companion.mavlink.signing import SignatureCheck, enable_signing, is_signed
+from companion.mavlink.signing import VEHICLE_ACCEPTS_UNSIGNED, SignatureCheck, enable_signing, is_signed
 from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
 
@@ -122,8 +122,6 @@ class ServerConfig:
     """MAVLink 2 signing: sign everything sent, and act only on frames signed with this key"""
 
 
-UNSIGNED_ALLOWED = frozenset({"HEARTBEAT", "RADIO_STATUS"})
-"""with signing on, what may arrive unsigned (it changes nothing, and teaches no peer address)"""
 FORWARDED = frozenset({"NAMED_VALUE_FLOAT", "NAMED_VALUE_INT", "DEBUG_VECT", "DEBUG"})
 """messages for the ground station, routed on as an autopilot does"""
 FORWARD_PER_S = 100
@@ -151,7 +149,7 @@ class MavlinkServer:
         self.signature_check: SignatureCheck | None = None
         if cfg.signing_key is not None:
             enable_signing(self.mav, cfg.signing_key)
-            self.signature_check = SignatureCheck(cfg.signing_key, allow_unsigned=UNSIGNED_ALLOWED)
+            self.signature_check = SignatureCheck(cfg.signing_key, allow_unsigned=VEHICLE_ACCEPTS_UNSIGNED)
         self._signing_reported: set[str] = set()
         # ArduCopter sends only HEARTBEAT (and STATUSTEXT) until a client asks for streams
         rates = {mavlink.MAVLINK_MSG_ID_HEARTBEAT: 1.0} if ap.ardupilot else cfg.rates_hz

@@ -195,4 +195,5 @@ class Bridge:
                                                                         "gave_up": g.gave_up,
                                                                         "gave_up_at_s": g.gave_up_at_s},
                 "pace_re_anchored": self.pace.re_anchored, "plant_params": dict(self.component.stats),
-                "shadowed": sorted(self.component.shadowed)}
+                "shadowed": sorted(self.component.shadowed),
+                **({"signing_refused": dict(self.relay.signing.refused)} if self.relay.signing is not None else {})}

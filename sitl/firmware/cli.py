@@ -25,6 +25,7 @@ from typing import Any
 
 from companion.control.params import VehicleParams
 from companion.mavlink.params import PLANT_COMPID
+from companion.mavlink.signing_options import signing_key
 from sitl.plant.geo import GeoOrigin
 from sitl.plant.nav_sensors import NavSensorParams
 from sitl.plant.parameters import build_plant_parameters
@@ -38,6 +39,7 @@ from .lockstep import CompanionGate
 from .plant_component import PlantComponent
 from .px4 import Px4Bridge, Px4Ports, Px4Process
 from .relay import TcpRelay, UdpRelay
+from .signed_link import SignedLink
 from .world import FirmwareWorld
 
 __all__ = ["FIRMWARES", "add_firmware_options", "run", "firmware_scenario", "Session"]
@@ -82,7 +84,7 @@ class Session:
     def __init__(self, firmware: str, build: Path, scenario: Scenario, seed: int, origin: GeoOrigin,
                  speedup: float, lockstep_period_s: float, instance: int = 0,
                  params: list[tuple[str, float]] | None = None, keep_workdir: bool = False,
-                 firmware_params: dict[str, float] | None = None) -> None:
+                 firmware_params: dict[str, float] | None = None, signing_key: bytes | None = None) -> None:
         self.firmware = firmware
         self.keep_workdir = keep_workdir
         self.workdir = Path(tempfile.mkdtemp(prefix=f"ismdo-{firmware}-"))
@@ -124,6 +126,8 @@ class Session:
             self.ports = {"companion": f"tcp://127.0.0.1:{aports.companion}",
                           "simulator": f"udp 127.0.0.1:{aports.json} (JSON)"}
         relay.on_command = gate.command
+        if signing_key is not None:
+            relay.signing = SignedLink(signing_key)
         self.process.start()
 
     def run(self, stop: Any, duration_s: float | None = None) -> None:
@@ -162,7 +166,8 @@ def run(args: argparse.Namespace, scenario: Scenario, origin: GeoOrigin) -> int:
     try:
         firmware_params = dict(parse_firmware_param(text) for text in args.firmware_param)
         session = Session(args.firmware, build, scenario, args.seed, origin, args.speedup,
-                          args.lockstep * 1e-3, args.instance, args.param, firmware_params=firmware_params)
+                          args.lockstep * 1e-3, args.instance, args.param, firmware_params=firmware_params,
+                          signing_key=signing_key(args, "sitl"))
     except (OSError, ValueError) as exc:
         print(f"sitl: error: {exc}", file=sys.stderr)
         return 2

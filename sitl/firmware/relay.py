@@ -2,7 +2,8 @@
 
 The firmware's companion port stays where users expect it (PX4: UDP to 14540, ArduPilot: TCP
 5760); the firmware itself is moved behind it (PX4's API link sends to the relay instead of 14540;
-ArduPilot's SERIAL0 serves another port) and every byte passes through unchanged, both ways. On
+ArduPilot's SERIAL0 serves another port) and every byte passes through unchanged, both ways
+(under MAVLink 2 signing, :mod:`.signed_link`, frames in are checked and frames out signed). On
 the way the relay reads two things from MAVLink headers, never decoding or altering a frame: the
 ``time_boot_ms`` of the companion's setpoints (SET_ATTITUDE_TARGET, SET_POSITION_TARGET_*) and the
 firmware's own time in its telemetry, for :class:`~.lockstep.CompanionGate`.
@@ -13,7 +14,10 @@ from __future__ import annotations
 import socket
 import struct
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
+
+if TYPE_CHECKING:
+    from .signed_link import SignedLink
 
 __all__ = ["Frame", "frames", "stamps", "armed", "for_component", "UdpRelay", "TcpRelay", "SETPOINTS",
            "CLOCKS_MS", "CLOCKS_US"]
@@ -37,6 +41,9 @@ class Frame(NamedTuple):
     payload: bytes
     compid: int
     """the sending component"""
+    sysid: int = 0
+    raw: bytes = b""
+    """the whole frame as it came"""
 
 
 def frames(buf: bytes | bytearray) -> tuple[list[Frame], int]:
@@ -54,7 +61,7 @@ def frames(buf: bytes | bytearray) -> tuple[list[Frame], int]:
             if end > n:
                 break
             msgid = buf[i + 7] | buf[i + 8] << 8 | buf[i + 9] << 16
-            out.append(Frame(msgid, bytes(buf[i + 10:i + 10 + length]), buf[i + 6]))
+            out.append(Frame(msgid, bytes(buf[i + 10:i + 10 + length]), buf[i + 6], buf[i + 5], bytes(buf[i:end])))
             i = end
         elif magic == 0xFE:
             if n - i < 6:
@@ -63,7 +70,7 @@ def frames(buf: bytes | bytearray) -> tuple[list[Frame], int]:
             end = i + 8 + length
             if end > n:
                 break
-            out.append(Frame(buf[i + 5], bytes(buf[i + 6:i + 6 + length]), buf[i + 4]))
+            out.append(Frame(buf[i + 5], bytes(buf[i + 6:i + 6 + length]), buf[i + 4], buf[i + 3], bytes(buf[i:end])))
             i = end
         else:
             i += 1  # not a frame start: skip
@@ -74,7 +81,8 @@ def stamps(msgs: list[Frame], kinds_ms: frozenset[int], kinds_us: frozenset[int]
     """The newest stamp [s] among ``msgs`` of the given kinds (time_boot_ms or time_usec first in
     the payload; MAVLink 2 trims trailing zeros, so a short payload is padded); 0 if none."""
     newest = 0.0
-    for msgid, payload, _ in msgs:
+    for m in msgs:
+        msgid, payload = m.msgid, m.payload
         if msgid in kinds_ms:
             t = _U32.unpack((payload + b"\0\0\0\0")[:4])[0] * 1e-3
         elif msgid in kinds_us:
@@ -115,9 +123,9 @@ def armed(msgs: list[Frame]) -> bool | None:
     """Whether the newest HEARTBEAT of the autopilot (component 1) among ``msgs`` says armed; None
     if there is none."""
     found = None
-    for msgid, payload, compid in msgs:
-        if msgid == 0 and compid == 1:
-            found = bool((payload + bytes(9))[6] & 128)
+    for m in msgs:
+        if m.msgid == 0 and m.compid == 1:
+            found = bool((m.payload + bytes(9))[6] & 128)
     return found
 
 
@@ -140,6 +148,8 @@ class UdpRelay:
         """the firmware's heartbeat: armed or not"""
         self.on_command: Callable[[], None] | None = None
         """the companion sent a command"""
+        self.signing: SignedLink | None = None
+        """MAVLink 2 signing at the companion's side (frames in checked, frames out signed)"""
         """(component id, handler): what the companion addresses to that component is answered
         here instead of through the firmware's forwarding (PX4 keeps two forwarded messages a link)"""
         self.fw_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -173,9 +183,14 @@ class UdpRelay:
                     self.on_telemetry(t)
                 if self.on_heartbeat is not None and (a := armed(msgs)) is not None:
                     self.on_heartbeat(a)
-                self._send(self.co_sock, data, self.companion, "down")
+                self._down(data)
             elif self.firmware_addr is not None:
                 msgs = frames(data)[0]
+                if self.signing is not None:
+                    msgs = self.signing.inbound(msgs)
+                    data = b"".join(m.raw for m in msgs)
+                    if not data:
+                        continue
                 if self.on_command is not None and any(m.msgid in COMMANDS for m in msgs):
                     self.on_command()
                 t = stamps(msgs, SETPOINTS)
@@ -185,7 +200,7 @@ class UdpRelay:
                     mine, data = for_component(data, self.local[0])
                     if mine:
                         for reply in self.local[1](mine):
-                            self._send(self.co_sock, reply, self.companion, "down")
+                            self._down(reply)
                     if not data:
                         continue
                 self._send(self.fw_sock, data, self.firmware_addr, "up")
@@ -193,6 +208,12 @@ class UdpRelay:
     def inject(self, data: bytes) -> None:
         """A datagram of the bridge's own (the plant component's heartbeat) to the companion."""
         if self.firmware_addr is not None:
+            self._down(data)
+
+    def _down(self, data: bytes) -> None:
+        if self.signing is not None:
+            data = self.signing.outbound(data)
+        if data:
             self._send(self.co_sock, data, self.companion, "down")
 
     def _send(self, sock: socket.socket, data: bytes, to: tuple[str, int], way: str) -> None:
@@ -218,6 +239,7 @@ class TcpRelay:
         self.on_heartbeat = on_heartbeat
         """both as :class:`UdpRelay`'s"""
         self.on_command: Callable[[], None] | None = None
+        self.signing: SignedLink | None = None
         self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.server.bind(listen)
@@ -265,9 +287,13 @@ class TcpRelay:
         msgs, used = frames(buf)
         whole = bytes(buf[:used])
         del buf[:used]
-        if len(buf) > 4096:  # never a frame: garbage, passed on as it came
-            whole += bytes(buf)
+        if len(buf) > 4096:  # never a frame: garbage, passed on as it came (dropped under signing)
+            if self.signing is None:
+                whole += bytes(buf)
             buf.clear()
+        if up and self.signing is not None:
+            msgs = self.signing.inbound(msgs)
+            whole = b"".join(m.raw for m in msgs)
         if up and self.on_command is not None and any(m.msgid in COMMANDS for m in msgs):
             self.on_command()
         t = stamps(msgs, SETPOINTS) if up else stamps(msgs, CLOCKS_MS, CLOCKS_US)
@@ -277,6 +303,8 @@ class TcpRelay:
             self.on_heartbeat(a)
         if not up:
             whole += self._pending.pop(other, b"")  # between whole frames
+            if self.signing is not None:
+                whole = self.signing.outbound(whole)
         elif self.local is not None:
             mine, whole = for_component(whole, self.local[0])
             if mine:

@@ -295,3 +295,126 @@ def test_after_a_command_the_next_heartbeat_tells_a_handed_back_vehicle_from_a_s
     assert gate.may_advance(0.03)
     gate.heartbeat(True)  # the stream is fresh: lockstep goes on
     assert not gate.may_advance(0.04)
+
+
+# --- signing at the companion's side of the relay --------------------------------------------
+
+KEY = bytes(range(32))
+
+
+def _pump(relay, rounds: int = 20) -> None:  # type: ignore[no-untyped-def]
+    import select
+
+    for _ in range(rounds):
+        ready = select.select(relay.sockets(), [], [], 0.02)[0]
+        for sock in ready:
+            relay.readable(sock)
+
+
+def _received(sock) -> bytes:  # type: ignore[no-untyped-def]
+    import socket
+
+    out = b""
+    sock.settimeout(0.2)
+    try:
+        while True:
+            out += sock.recv(65535)
+            sock.settimeout(0.05)
+    except (socket.timeout, BlockingIOError):
+        return out
+
+
+def test_under_signing_the_udp_relay_signs_what_leaves_and_passes_only_signed_frames_in() -> None:
+    import socket
+
+    from companion.mavlink.signing import enable_signing
+    from sitl.firmware.relay import UdpRelay
+    from sitl.firmware.signed_link import SignedLink
+
+    companion = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    companion.bind(("127.0.0.1", 0))
+    firmware = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    firmware.bind(("127.0.0.1", 0))
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    fw_side = probe.getsockname()
+    probe.close()
+    relay = UdpRelay(fw_side, companion.getsockname(), lambda t: None, lambda t: None)
+    relay.signing = SignedLink(KEY)
+    try:
+        px4 = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+        firmware.sendto(px4.heartbeat_encode(2, 12, 0, 0, 4).pack(px4)
+                        + px4.attitude_encode(1000, 0.1, 0, 0, 0, 0, 0).pack(px4), fw_side)
+        _pump(relay)
+        rx = mavlink.MAVLink(None)
+        rx.signing.secret_key = KEY  # pymavlink checks each signature against this key
+        got = rx.parse_buffer(_received(companion)) or []
+        assert [m.get_type() for m in got] == ["HEARTBEAT", "ATTITUDE"] and all(m.get_signed() for m in got)
+
+        plain = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        signed = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        enable_signing(signed, KEY)
+        wrong = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        enable_signing(wrong, bytes(32 * [7]))
+        arm_plain = plain.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(plain)
+        arm_wrong = wrong.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(wrong)
+        arm_signed = signed.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(signed)
+        gcs_heartbeat = plain.heartbeat_encode(6, 8, 0, 0, 4).pack(plain)
+        for datagram in (arm_plain, arm_wrong, arm_signed, gcs_heartbeat):
+            companion.sendto(datagram, relay.co_sock.getsockname())
+        _pump(relay)
+        assert _received(firmware) == arm_signed + gcs_heartbeat  # unchanged, the refused ones dropped
+        assert relay.signing.refused == {"unsigned COMMAND_LONG": 1, "wrong key COMMAND_LONG": 1}
+        companion.sendto(arm_signed, relay.co_sock.getsockname())  # the same frame again: a replay
+        _pump(relay)
+        assert _received(firmware) == b"" and relay.signing.refused["replayed COMMAND_LONG"] == 1
+    finally:
+        relay.close()
+        companion.close()
+        firmware.close()
+
+
+def test_under_signing_the_tcp_relay_signs_the_firmwares_stream_and_the_plants_replies() -> None:
+    import socket
+
+    from companion.mavlink.signing import enable_signing
+    from sitl.firmware.relay import TcpRelay
+    from sitl.firmware.signed_link import SignedLink
+
+    firmware_server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    firmware_server.bind(("127.0.0.1", 0))
+    firmware_server.listen(1)
+    probe = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    probe.bind(("127.0.0.1", 0))
+    listen = probe.getsockname()
+    probe.close()
+    plant = mavlink.MAVLink(None, srcSystem=1, srcComponent=PLANT_COMPID)
+    answer = plant.param_value_encode(b"SIM_FORCE_X", 2.0, 9, 1, 0).pack(plant)
+    relay = TcpRelay(listen, firmware_server.getsockname(), lambda t: None, lambda t: None,
+                     (PLANT_COMPID, lambda data: [answer]))
+    relay.signing = SignedLink(KEY)
+    client = socket.create_connection(listen)
+    try:
+        _pump(relay, 5)
+        fw, _ = firmware_server.accept()
+        signed = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        enable_signing(signed, KEY)
+        plain = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        client.sendall(signed.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 2.0, 9).pack(signed)
+                       + plain.param_set_encode(1, 1, b"ARMING_CHECK", 0, 9).pack(plain)
+                       + signed.param_set_encode(1, 1, b"GUID_TIMEOUT", 0.5, 9).pack(signed))
+        _pump(relay)
+        up = mavlink.MAVLink(None).parse_buffer(_received(fw)) or []
+        assert [m.param_id for m in up] == ["GUID_TIMEOUT"]  # the plant's own answered here; the unsigned dropped
+        ardu = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+        fw.sendall(ardu.heartbeat_encode(2, 3, 0, 0, 4).pack(ardu))
+        _pump(relay)
+        rx = mavlink.MAVLink(None)
+        rx.signing.secret_key = KEY
+        got = rx.parse_buffer(_received(client)) or []
+        assert sorted(m.get_type() for m in got) == ["HEARTBEAT", "PARAM_VALUE"] and all(m.get_signed() for m in got)
+        assert relay.signing.refused == {"unsigned PARAM_SET": 1}
+    finally:
+        client.close()
+        relay.close()
+        firmware_server.close()
