@@ -53,7 +53,8 @@ def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float,
                            cwd=ROOT)
     finally:
         vehicle.stop(timeout_s=30)
-    folder = Path(r.stdout.strip().rsplit(" -> ", 1)[-1]) if " -> " in r.stdout else None
+    said = (r.stdout + r.stderr).strip()  # a flight that ends badly names its folder on stderr
+    folder = Path(said.rsplit(" -> ", 1)[-1].split()[0]) if " -> " in said else None
     if r.returncode != 0 and folder is not None and (folder / "segments.json").exists():
         data = json.loads((folder / "segments.json").read_text())
         failed = [s["name"] for s in data["segments"] if not s["ok"]]

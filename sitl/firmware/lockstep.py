@@ -10,9 +10,11 @@ one telemetry interval so that the sample for the companion's next tick exists, 
 
 The world waits only while the vehicle is armed (the firmware's heartbeat, read by the relay).
 A command from the companion (a landing, a hold, a mode) lets the world run to the firmware's
-next heartbeat: a companion that hands the vehicle back stops streaming on purpose, and the
-firmware must run to act on the command (frozen, it would not even send the heartbeat that says
-so, and the give-up below raced the companion's own 3 s link watchdog). If by that heartbeat the
+first heartbeat ``STREAM_GAP_S`` or more after it (the one that answers a mode change at once
+comes before the stream could have been seen to end): a companion that hands the vehicle back
+stops streaming on purpose, and the firmware must run to act on the command (frozen, it would
+not even send the heartbeat that says so, and the give-up below raced the companion's own 3 s
+link watchdog). If by that heartbeat the
 newest setpoint is more than ``STREAM_GAP_S`` old, the stream has ended and the world runs on
 until a newer one; if not (the switch to OFFBOARD, with the companion streaming on), lockstep
 goes on. A stream silent for ``give_up_wall_s`` (3 s, as the bundled vehicle's lockstep) of wall
@@ -45,6 +47,8 @@ class CompanionGate:
     armed: bool = True
     """the firmware's heartbeat says armed (until one says otherwise)"""
     _commanded: bool = False
+    _commanded_at_s: float = math.nan
+    """the firmware's time when the command went through"""
     _given_up_on: float = math.nan
     _waiting_since_wall: float | None = None
     _awake_s: float = 0.0
@@ -65,11 +69,12 @@ class CompanionGate:
         """The companion sent a command (to land, to change mode): it may stop streaming on purpose,
         and the firmware must run to act on it, to its next heartbeat."""
         self._commanded = True
+        self._commanded_at_s = self.firmware_now_s
 
     def heartbeat(self, armed: bool) -> None:
         """The firmware's heartbeat: armed or not; after a command, whether the stream goes on."""
         self.armed = armed
-        if self._commanded:
+        if self._commanded and not self.firmware_now_s < self._commanded_at_s + STREAM_GAP_S:
             self._commanded = False
             if self.setpoint_stamp_s < self.firmware_now_s - STREAM_GAP_S:
                 self._given_up_on = self.setpoint_stamp_s  # handed back: runs on until a newer setpoint

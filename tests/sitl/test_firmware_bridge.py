@@ -293,8 +293,30 @@ def test_after_a_command_the_next_heartbeat_tells_a_handed_back_vehicle_from_a_s
     gate.setpoint(20.02)
     gate.telemetry(20.06)
     assert gate.may_advance(0.03)
+    gate.setpoint(20.12)
+    gate.telemetry(20.15)
     gate.heartbeat(True)  # the stream is fresh: lockstep goes on
     assert not gate.may_advance(0.04)
+
+
+def test_a_heartbeat_that_answers_the_command_at_once_does_not_decide_for_the_stream() -> None:
+    """ArduCopter answers a mode change with a heartbeat in the same millisecond, before the
+    companion's stream could have been seen to end: had that heartbeat decided, the landing's
+    world froze 25 ms on (the companion's last setpoint + the lead) until the companion's own 3 s
+    watchdog declared the link lost (1 of 3 ArduCopter hover45 flights on a busy host)."""
+    gate = CompanionGate(lead_s=0.025)
+    gate.setpoint(69.384)
+    gate.telemetry(69.39)
+    gate.command()  # DO_SET_MODE LAND
+    gate.setpoint(69.394)  # the tick already under way
+    gate.telemetry(69.394)
+    gate.heartbeat(True)  # LAND, at once
+    gate.telemetry(69.424)
+    assert gate.may_advance(0.0)  # still the command's: runs on
+    gate.telemetry(69.6)
+    gate.heartbeat(True)  # the stream has ended by now
+    gate.telemetry(70.0)
+    assert gate.may_advance(0.01) and gate.gave_up == 0
 
 
 # --- signing at the companion's side of the relay --------------------------------------------
