@@ -290,6 +290,14 @@ def _tlog_airborne(t: Array, v: _TlogVehicle, ardupilot: bool, from_landed_state
 
 def read_dataflash(path: str | Path) -> FlightSeries:
     """An ArduCopter DataFlash log (.bin). Each message's TimeUS is its stamp."""
+    import contextlib
+    import io
+
+    with contextlib.redirect_stdout(io.StringIO()):  # DFReader prints a line per damaged header
+        return _read_dataflash(path)
+
+
+def _read_dataflash(path: str | Path) -> FlightSeries:
     from pymavlink import DFReader
 
     log = DFReader.DFReader_binary(str(path))

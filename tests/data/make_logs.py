@@ -31,7 +31,6 @@ write_ulog). Nothing is changed in what is kept.
 from __future__ import annotations
 
 import argparse
-import math
 import shutil
 import sys
 import threading
