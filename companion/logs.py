@@ -107,7 +107,7 @@ def read_ulog(path: str | Path) -> FlightSeries:
         from pyulog import ULog
     except ImportError:  # pragma: no cover - depends on the install
         raise RuntimeError("reading ULog needs pyulog: pip install 'ismdo-companion[logs]'") from None
-    from .mavlink.airframe import rotor_count
+    from .mavlink.airframe import lifted_by_rotors, rotor_count
 
     topics = ("vehicle_attitude", "sensor_combined", "vehicle_local_position", "actuator_motors",
               "vehicle_thrust_setpoint", "actuator_controls_0", "vehicle_land_detected")
@@ -120,6 +120,9 @@ def read_ulog(path: str | Path) -> FlightSeries:
         if need not in data:
             raise ValueError(f"{path}: no {need} topic in the log")
     params = ulog.initial_parameters
+    if "MAV_TYPE" in params and not lifted_by_rotors(int(params["MAV_TYPE"])):
+        raise ValueError(f"{path}: MAV_TYPE {int(params['MAV_TYPE'])} is not a multicopter: its thrust is not along "
+                         "the body's z axis")
     imu = data["sensor_combined"]
     t_us = imu["timestamp"].astype(float)
     t = (t_us - t_us[0]) * 1e-6
@@ -185,10 +188,12 @@ class _TlogVehicle:
 
         kind = m.get_type()  # type: ignore[attr-defined]
         if hasattr(m, "time_boot_ms"):
-            self.stamp = m.time_boot_ms * 1e-3  # type: ignore[attr-defined]
+            t = m.time_boot_ms * 1e-3  # type: ignore[attr-defined]
         elif hasattr(m, "time_usec"):
-            self.stamp = m.time_usec * 1e-6  # type: ignore[attr-defined]
-        t = self.stamp
+            t = m.time_usec * 1e-6  # type: ignore[attr-defined]
+        else:
+            t = self.stamp  # undated: the newest stamp before it
+        self.stamp = t if not t < self.stamp else self.stamp
         if kind == "HEARTBEAT":
             if m.autopilot == mavutil.mavlink.MAV_AUTOPILOT_INVALID:  # type: ignore[attr-defined]
                 return
@@ -217,7 +222,12 @@ class _TlogVehicle:
 def read_tlog(path: str | Path) -> FlightSeries:
     from pymavlink import mavutil
 
-    from .mavlink.airframe import airborne_from_landed_state, ardupilot_airborne_from_system_status, rotor_count
+    from .mavlink.airframe import (
+        airborne_from_landed_state,
+        ardupilot_airborne_from_system_status,
+        lifted_by_rotors,
+        rotor_count,
+    )
 
     mlog = mavutil.mavlink_connection(str(path), robust_parsing=True)
     vehicles: dict[int, _TlogVehicle] = {}
@@ -232,6 +242,9 @@ def read_tlog(path: str | Path) -> FlightSeries:
         raise ValueError(f"{path}: no messages from an autopilot (component 1)")
     v = max(vehicles.values(), key=lambda x: len(x.rows["ATTITUDE_QUATERNION"]) + len(x.rows["ATTITUDE"]))
     ardupilot = v.autopilot == mavutil.mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+    if v.mav_type is not None and not lifted_by_rotors(v.mav_type):
+        raise ValueError(f"{path}: the vehicle's HEARTBEAT type {v.mav_type} is not a multicopter: its thrust is not "
+                         "along the body's z axis")
     quat_rows, euler_rows = v.stamped("ATTITUDE_QUATERNION"), v.stamped("ATTITUDE")
     if not len(quat_rows) and not len(euler_rows):
         raise ValueError(f"{path}: needs ATTITUDE_QUATERNION or ATTITUDE messages")
@@ -305,10 +318,16 @@ def _read_dataflash(path: str | Path) -> FlightSeries:
     frame_class = None
     kf_name = None
     while True:
-        m = log.recv_match(type=["ATT", "IMU", "XKF1", "NKF1", "CTUN", "EV", "PARM"])
+        m = log.recv_match(type=["ATT", "IMU", "XKF1", "NKF1", "CTUN", "EV", "PARM", "MSG"])
         if m is None:
             break
         kind = m.get_type()
+        if kind == "MSG":
+            other = next((v for v in ("ArduPlane", "ArduRover", "ArduSub", "Blimp") if m.Message.startswith(v)), None)
+            if other is not None:  # ArduPlane's CTUN has a ThO too: a forward thrust
+                raise ValueError(f"{path}: an {other} log ({m.Message.strip()}): companion estimate reads "
+                                 "multicopters (ArduCopter)")
+            continue
         if kind == "PARM":
             if m.Name == "FRAME_CLASS":
                 frame_class = int(m.Value)

@@ -387,3 +387,25 @@ def test_a_wide_csv_costs_memory_for_the_mapped_columns_only(tmp_path):
     assert len(series.t_s) == 10_000
     mapped_bytes = 10_000 * len(SITL_COLUMNS) * 8
     assert peak < 8 * mapped_bytes, (peak, mapped_bytes)
+
+
+def test_a_fixed_wing_log_is_refused_not_misread(tmp_path, capsys):
+    """A fixed wing's thrust is along its nose, not its z axis: its telemetry log (HEARTBEAT type
+    FIXED_WING, the rest as a multicopter's) is refused by name instead of estimated."""
+    import struct
+
+    from pymavlink.dialects.v20 import common as mavlink
+
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    frames = [mav.heartbeat_encode(mavlink.MAV_TYPE_FIXED_WING, mavlink.MAV_AUTOPILOT_PX4, 0, 0, 3)]
+    for k in range(50):
+        frames += [mav.attitude_quaternion_encode(10 * k, 1, 0, 0, 0, 0, 0, 0),
+                   mav.local_position_ned_encode(10 * k, 0, 0, -k * 0.1, 0, 0, -1.0),
+                   mav.attitude_target_encode(10 * k, 0, [1, 0, 0, 0], 0, 0, 0, 0.5)]
+    path = tmp_path / "plane.tlog"
+    with open(path, "wb") as f:
+        for k, msg in enumerate(frames):
+            f.write(struct.pack(">Q", 1_700_000_000_000_000 + 10_000 * k) + msg.pack(mav))
+    assert main(["estimate", str(path), "--mass", "1", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "type 1 is not a multicopter" in err[0], err
