@@ -62,7 +62,7 @@ NEVER_AIRBORNE_CLIMB_M = 0.5
 estimated height of a vehicle on the ground wanders: 4 mm in ArduCopter's SITL, 1 m down in a real
 PX4 1.11 log at boot; a take-off climbs a metre and more, clear of the ground effect)"""
 AIRBORNE_THRUST = 0.05
-"""without a land detector, the samples fitted for the thrust scale: normalised thrust above this"""
+"""the samples a thrust scale is fitted over have a normalised thrust above this"""
 
 
 @dataclass(frozen=True)
