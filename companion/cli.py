@@ -144,13 +144,18 @@ def _non_negative(text: str) -> float:
 
 
 def _estimate(args: argparse.Namespace) -> int:
-    from .estimate import estimate_force, plot, rms, write_csv
+    from .estimate import ThrustScale, estimate_force, plot, rms, write_csv
     from .logs import read_log
 
+    scale = None
+    if args.thrust_scale_total is not None:
+        scale = ThrustScale(args.thrust_scale_total, per_motor=False)
+    elif args.thrust_scale_per_motor is not None:
+        scale = ThrustScale(args.thrust_scale_per_motor, per_motor=True)
     try:
         series = read_log(args.log, args.columns, thrust_is_newtons=args.thrust_newtons, world_frame=args.world,
                           body_frame=args.body)
-        est = estimate_force(series, args.mass, args.gamma, args.thrust_scale, args.method, args.motor_tau)
+        est = estimate_force(series, args.mass, args.gamma, scale, args.method, args.motor_tau)
     except (OSError, ValueError, RuntimeError, ZeroDivisionError) as exc:
         print(f"companion: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
@@ -160,9 +165,11 @@ def _estimate(args: argparse.Namespace) -> int:
     write_csv(est, out / f"{stem}_force.csv")
     plot(est, out / f"{stem}_force.png", series.source)
     print(f"{series.source}: {len(est.t_s)} samples over {est.t_s[-1]:.1f} s, {est.method}")
+    if est.airborne is not None:
+        print(f"airborne {est.airborne_s:.1f} s of {est.t_s[-1]:.1f} s by {est.airborne_source} (the output's "
+              "airborne column; on the ground the force is the ground's)")
     if est.thrust_scale_n is not None:
-        how = " (estimated)" if est.thrust_scale_estimated else ""
-        print(f"thrust scale {est.thrust_scale_n:.3f} N at full thrust{how}")
+        print(est.describe_scale())
     if est.truth_force_ned_n is not None:
         print(f"RMS error against the logged truth: {rms(est.force_ned_n - est.truth_force_ned_n):.3f} N")
     print(f"-> {out / f'{stem}_force.csv'}, {out / f'{stem}_force.png'}")
@@ -216,15 +223,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                       "(in lockstep it flies as fast as the companion answers, up to this)")
     demo.add_argument("--controller", choices=POSITION_CONTROLLERS, default="ism_do")
     demo.set_defaults(func=_demo)
-    est = sub.add_parser("estimate", help="the external force over a logged flight (ULog, tlog or CSV)")
-    est.add_argument("log", help=".ulg (PX4), .tlog (MAVLink) or .csv/.csv.gz (with --columns)")
+    est = sub.add_parser("estimate", help="the external force over a logged flight (ULog, tlog, DataFlash or CSV)")
+    est.add_argument("log", help=".ulg (PX4), .tlog (MAVLink: PX4 or ArduPilot), .bin (ArduCopter DataFlash) or "
+                                 ".csv/.csv.gz (with --columns)")
     est.add_argument("--mass", type=_positive, required=True, help="vehicle mass [kg]")
-    est.add_argument("--thrust-scale", type=_positive, help="thrust [N] at normalised 1.0 (default: estimated)")
+    scale = est.add_mutually_exclusive_group()
+    scale.add_argument("--thrust-scale-total", type=_positive, metavar="N",
+                       help="thrust of all rotors at full thrust [N] (default: estimated from the log)")
+    scale.add_argument("--thrust-scale-per-motor", type=_positive, metavar="N",
+                       help="thrust of one rotor at full thrust [N]; converted with the log's motor count")
     est.add_argument("--gamma", type=_positive, default=5.0, help="observer bandwidth [rad/s] (default 5)")
     est.add_argument("--method", choices=("auto", "accelerometer", "velocity"), default="auto")
     est.add_argument("--motor-tau", type=_non_negative, default=0.0,
                      help="rotor time constant [s] for logged commands")
-    est.add_argument("--columns", help="CSV: FIELD=COLUMN,... (t,qw,qx,qy,qz,ax,ay,az,vx,vy,vz,thrust) or 'sitl'")
+    est.add_argument("--columns", help="CSV: FIELD=COLUMN,... (t,qw,qx,qy,qz,ax,ay,az,vx,vy,vz,z,thrust,landed) or "
+                                       "'sitl'")
     est.add_argument("--thrust-newtons", action="store_true", help="CSV: the thrust column is in newtons")
     est.add_argument("--world", choices=("ned", "enu"), default="ned", help="CSV: world frame")
     est.add_argument("--body", choices=("frd", "flu"), default="frd", help="CSV: body frame")
