@@ -149,30 +149,33 @@ def plant_step(c: PlantConst, s: RigidBody, rotor_cmd_rad_s: Rotors4, wind_ned_m
     )
     q = quat.integrate(q, om, dt_s)
     if not is_scalar(pos[2]) or pos[2] >= c.ground_z_m:  # a batch: element-wise, whoever is down
-        pos, vel, q, om, sf_body = _ground_contact(c, pos, vel, q, om, sf_body, thrust, rot, dt_s, s.q)
+        pos, vel, q, om, sf_body = _ground_contact(c, pos, vel, q, om, sf_body, thrust, rot, dt_s, s.q, s.pos_ned_m)
     return (RigidBody(pos, vel, q, om, (w1, w2, w3, w4)),
             Forces(sf_body, thrust, (t_rx, t_ry, t_rz), (hx, hy, hz), torque_dist))
 
 
 @jitable
 def _ground_contact(c: PlantConst, pos: Vec3, vel: Vec3, q: Quat, om: Vec3, sf_body: Vec3,
-                    thrust: Real, rot: object, dt_s: float, q_before: Quat) -> tuple[Vec3, Vec3, Quat, Vec3, Vec3]:
+                    thrust: Real, rot: object, dt_s: float, q_before: Quat, pos_before: Vec3
+                    ) -> tuple[Vec3, Vec3, Quat, Vec3, Vec3]:
     """The ground holds the vehicle up. A body that reaches it sinking is decelerated at up to
     ``ground_decel_m_s2`` (it sinks a few millimetres meanwhile) and put back on the surface once
-    stopped; with thrust under the weight it rests at its yaw, without horizontal motion, and
-    settles level. The accelerometer feels what the ground did: the change of velocity it imposed in
-    the step, ``R^T dv / dt``, on top of the other forces — at rest that is the reaction that
-    replaces the missing lift (``-g`` along z_B), at a touchdown the deceleration that stopped
-    the descent. At rest the ground holds it against the rotors' torques and it settles level
-    from where the step began (``q_before``, :data:`GROUND_SETTLE_S`): its body rate, what the
-    gyro reads, is that settling. Element-wise for a batch."""
+    stopped; with thrust under the weight it rests at its yaw, where it was at the step's start
+    (friction holds it against wind and pushes), and settles level. The accelerometer feels what
+    the ground did: the change of velocity it imposed in the step, ``R^T dv / dt``, on top of the
+    other forces — at rest that is the reaction that replaces the missing lift (``-g`` along z_B),
+    at a touchdown the deceleration that stopped the descent. At rest the ground holds it against
+    the rotors' torques and it settles level from where the step began (``q_before``,
+    :data:`GROUND_SETTLE_S`): its body rate, what the gyro reads, is that settling. Element-wise
+    for a batch."""
     ground = c.ground_z_m
     below = pos[2] >= ground
     resting = below & (thrust < c.weight_n)
     vz_free = vel[2]
     slowed = vz_free - c.ground_decel_m_s2 * dt_s
     vz = where(below & (vz_free > 0.0), where(slowed > 0.0, slowed, 0.0), vz_free)
-    pos = (pos[0], pos[1], where(below & (vz <= 0.0), ground, pos[2]))
+    pos = (where(resting, pos_before[0], pos[0]), where(resting, pos_before[1], pos[1]),
+           where(below & (vz <= 0.0), ground, pos[2]))
     stopped = (where(resting, 0.0, vel[0]), where(resting, 0.0, vel[1]), vz)
     k = 1.0 / dt_s
     dv = ((stopped[0] - vel[0]) * k, (stopped[1] - vel[1]) * k, (stopped[2] - vel[2]) * k)

@@ -42,6 +42,18 @@ def test_motors_off_falls_at_g_then_rests_on_the_ground():
     assert w.specific_force_body_m_s2 == (0.0, 0.0, -V.gravity_m_s2)  # the ground holds it up
 
 
+def test_a_vehicle_resting_on_the_ground_stays_put_in_wind_and_under_a_push():
+    """Friction holds a landed vehicle: 3 m/s of wind (1.7 N of drag) and a 1 N push at idle
+    rotors move it not at all in 10 s. Integrated and then stopped each step, it crept 5 mm/s,
+    and ArduCopter's loiter in LAND chased the creep on the ground."""
+    p = Plant.at_rest(V, AirframeParams(), (0.0, 0.0, 0.0))
+    idle = (0.3 * V.rotor_speed_max_rad_s,) * 4
+    p.state = p.state._replace(rotor_speed_rad_s=idle)
+    for _ in range(10_000):
+        p.step(idle, (3.0, 0.0, 0.0), (0.0, 1.0, 0.0), ZERO, DT)
+    assert p.state.pos_ned_m == (0.0, 0.0, 0.0) and p.state.vel_ned_m_s == (0.0, 0.0, 0.0)
+
+
 def test_rotor_lag_is_first_order_with_the_stated_time_constant():
     af = AirframeParams()
     p = Plant.at_rest(V, af, (0.0, 0.0, -5.0))
