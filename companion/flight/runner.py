@@ -252,8 +252,7 @@ class Flight:
                 silent_link_s=heard_nothing.check(st.wall_last, now),
                 silent_nav_s=heard_no_navigation.check(min(st.wall_pos, st.wall_att), now),
                 telemetry_age_s=link.telemetry_age(now), behind_s=link.rx_lag_s * link.clock.rate,
-                rate=link.clock.rate, engaged=self.engaged,
-                breach=self._volume_breach() if self.expect_offboard else None)
+                rate=link.clock.rate, engaged=self.engaged)
             verdict = supervisor.judge(self.watch, w, self.limits)
             self.watch = verdict.state
             for text in verdict.log:
@@ -262,8 +261,6 @@ class Flight:
                 raise LinkLost(verdict.link_lost)
             if verdict.hold:
                 self._in_background(self._hold_while_ours())
-            if verdict.breach:
-                self._breach = verdict.breach
 
     async def _hold_while_ours(self) -> None:
         """Command hold once a heartbeat heard after the request says the vehicle still flies our
@@ -310,7 +307,13 @@ class Flight:
             grid.ticked(tick_wall, clock.now(tick_wall), state.t)
             t_next = grid.t_next
             tick, sent = None, False
-            if self.engaged and self.control is not None and state.has_navigation and not self.stale:
+            if self.engaged and self.expect_offboard and self._breach is None and not self.stale:
+                self.watch, breach = supervisor.judge_breach(self.watch, self._volume_breach())
+                if breach:  # no setpoint after it: the mission ends, hold then land (until())
+                    self._breach = breach
+                    self.log(f"{breach}: holding, then landing")
+            if (self.engaged and self.control is not None and state.has_navigation and not self.stale
+                    and self._breach is None):
                 self.health.observe_age(t_next - min(state.t_pos, state.t_att))
                 # the controller's own time follows the telemetry's stamps, not just this line:
                 # a tick with no new vehicle time to step re-sends the last setpoint

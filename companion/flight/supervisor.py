@@ -71,8 +71,6 @@ class Watch:
     """vehicle seconds per wall second"""
     engaged: bool
     """the controller is streaming setpoints"""
-    breach: str | None = None
-    """outside the safety volume: why (None: inside, or not flying it)"""
 
 
 @dataclass(frozen=True)
@@ -95,8 +93,6 @@ class Verdict:
     """end the flight: the link is gone"""
     hold: str | None = None
     """command hold now (best effort, in the background), for this reason"""
-    breach: str | None = None
-    """end the mission: hold, then land, for this reason"""
     log: tuple[str, ...] = ()
 
 
@@ -130,12 +126,16 @@ def judge(s: Watchdog, w: Watch, lim: Limits) -> Verdict:
             new = dataclasses.replace(new, hold_requested=True)
             hold = f"telemetry stale for {age:.2f} s: commanding hold"
             log.append(hold)
-    breach = None
-    if w.breach is not None and not s.breached and not stale:
-        new = dataclasses.replace(new, breached=True)
-        breach = f"outside the safety volume: {w.breach}"
-        log.append(f"{breach}: holding, then landing")
-    return Verdict(dataclasses.replace(new, stale=stale), hold=hold, breach=breach, log=tuple(log))
+    return Verdict(dataclasses.replace(new, stale=stale), hold=hold, log=tuple(log))
+
+
+def judge_breach(s: Watchdog, breach: str | None) -> tuple[Watchdog, str | None]:
+    """The safety volume, judged on every control tick (vehicle time, so a lockstep flight stops at
+    the same place on any host): the first breach seen on fresh telemetry ends the mission, once.
+    ``breach`` is the volume's reason (None: inside); the verdict is the mission's abort reason."""
+    if breach is None or s.breached or s.stale:
+        return s, None
+    return dataclasses.replace(s, breached=True), f"outside the safety volume: {breach}"
 
 
 def outage_recent(s: Watchdog, wall_s: float, within_s: float = 2.0) -> bool:

@@ -17,7 +17,7 @@ def watch(**kw):
 
 def test_a_healthy_link_changes_nothing():
     v = sv.judge(sv.Watchdog(), watch(), LIM)
-    assert v.state == sv.Watchdog() and v.link_lost is None and v.hold is None and v.breach is None
+    assert v.state == sv.Watchdog() and v.link_lost is None and v.hold is None
 
 
 def test_silence_past_the_link_lost_bound_ends_the_flight_but_not_before():
@@ -52,9 +52,15 @@ def test_a_backlog_in_our_own_queue_pauses_but_never_holds():
 
 
 def test_leaving_the_safety_volume_ends_the_mission_once():
-    v = sv.judge(sv.Watchdog(), watch(breach="12.0 m from home, limit 10 m"), LIM)
-    assert v.breach and "12.0 m from home" in v.breach and v.state.breached
-    assert sv.judge(v.state, watch(breach="13 m"), LIM).breach is None
+    state, why = sv.judge_breach(sv.Watchdog(), "12.0 m from home, limit 10 m")
+    assert why == "outside the safety volume: 12.0 m from home, limit 10 m" and state.breached
+    assert sv.judge_breach(state, "13 m") == (state, None)
+    assert sv.judge_breach(sv.Watchdog(), None) == (sv.Watchdog(), None)
+
+
+def test_a_breach_is_not_judged_on_stale_telemetry():
+    stale = sv.Watchdog(stale=True)
+    assert sv.judge_breach(stale, "12.0 m from home, limit 10 m") == (stale, None)
 
 
 def step(**kw):

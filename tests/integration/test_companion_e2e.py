@@ -309,7 +309,8 @@ def test_the_square_keeps_its_clean_bounds_on_a_host_that_stalls_both_processes(
     stalls, stalled_s = staller.stop()
     code, out = c.finish()
     assert code == 0, out
-    assert stalls >= 20 and stalled_s > 0.8, (stalls, stalled_s)  # the square takes ~7 s of wall time
+    # the schedule is seeded: 15 stalls are 0.50 s of stopped wall time (a faster host makes fewer)
+    assert stalls >= 15 and stalled_s >= 0.49, (stalls, stalled_s)
     square = segments(c.flight_dir())["square"]
     assert square["ok"] and square["rms_error_m"] < 0.05 and square["peak_error_m"] < 0.15, square
     report = s.stop()

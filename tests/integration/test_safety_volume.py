@@ -51,8 +51,10 @@ def test_a_vehicle_blown_out_of_its_volume_is_held_and_landed(sitl, companion, t
     their ranges, together beyond what the 60 deg tilt limit can hold (6.2 N): the vehicle is blown
     north and leaves its 3 m cylinder within seconds. The companion
     must stop the mission on the breach (exit 1, the breach named), command hold, then land, and the
-    vehicle end disarmed on the ground; the breach is judged within 0.5 m of the limit (the vehicle
-    moves ~5 m/s at most: 0.1 s of detection and command latency)."""
+    vehicle end disarmed on the ground. The breach is judged on every control tick in vehicle time
+    (not on the wall-clock watchdog, which let it fly 0.16-0.66 m past the limit at 8x depending on
+    the host), so the mission ends within a tick of the limit: 5 m/s at most for a few 10 ms ticks
+    is 0.15 m."""
     mission = tmp_path / "drifting.toml"
     mission.write_text(DRIFTING)
     s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
@@ -65,5 +67,5 @@ def test_a_vehicle_blown_out_of_its_volume_is_held_and_landed(sitl, companion, t
     dist = np.hypot(d["x"], d["y"])
     storm = segments(c.flight_dir())["hold in the storm"]
     during = (d["t"] >= storm["t_start"]) & (d["t"] <= storm["t_end"])
-    assert dist[during].max() < 3.0 + 0.5, dist[during].max()  # stopped at the breach
+    assert dist[during].max() < 3.0 + 0.15, dist[during].max()  # stopped at the breach
     assert not s.stop()["armed"]
