@@ -36,7 +36,7 @@ from .ardupilot import ArduPilotBridge, ArduPilotPorts, ArduPilotProcess
 from .bridge import Bridge, Pace, PlantSocket
 from .builds import arducopter_binary, px4_build
 from .lockstep import CompanionGate
-from .plant_component import PlantComponent
+from .plant_component import PlantComponent, estimator_origin
 from .px4 import Px4Bridge, Px4Ports, Px4Process
 from .relay import TcpRelay, UdpRelay
 from .signed_link import SignedLink
@@ -94,7 +94,8 @@ class Session:
             reason = table.set(name, value)
             if reason is not None:
                 raise ValueError(f"--param {name}: {reason}")
-        component = PlantComponent(world.vehicle, origin, set_origin=scenario.nav_sensors.position_source == "mocap")
+        component = PlantComponent(world.vehicle, estimator_origin(origin, firmware),
+                                   set_origin=scenario.nav_sensors.position_source == "mocap")
         lead = lockstep_period_s + TELEMETRY_INTERVAL_S + 0.005 if lockstep_period_s > 0 else 0.0
         gate = CompanionGate(lead)
         pace = Pace(speedup)
