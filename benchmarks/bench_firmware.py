@@ -23,6 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from companion.plots import load_timeseries  # noqa: E402
@@ -70,12 +72,31 @@ def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float,
     return folder
 
 
-def segments(folder: Path, names: tuple[str, ...]) -> dict[str, dict]:
+JUMP_M = 1.0
+"""a position change between two 100 Hz samples no vehicle can fly (100 m/s): the estimator reset"""
+
+
+def estimator_jump(folder: Path) -> tuple[float, float] | None:
+    """(time [s], size [m]) of the first jump of the estimated position, or None."""
+    d = load_timeseries(folder)
+    step = np.sqrt(np.diff(d["x"]) ** 2 + np.diff(d["y"]) ** 2 + np.diff(d["z"]) ** 2)
+    bad = np.flatnonzero(np.nan_to_num(step, nan=0.0) > JUMP_M)
+    return None if bad.size == 0 else (float(d["t"][bad[0] + 1]), float(step[bad[0]]))
+
+
+def segments(folder: Path, names: tuple[str, ...], flight: str) -> dict[str, dict]:
+    """The named segments of a flight; those after an estimator jump are dropped (and listed)."""
     data = json.loads((folder / "segments.json").read_text())
     found = {s["name"]: s for s in data["segments"] if s["name"] in names and s["rms_error_m"] is not None}
+    jump = estimator_jump(folder)
+    if jump is not None:
+        t, size = jump
+        FAILURES.append(f"{flight}: the estimated position jumped {size:.1f} m at t = {t:.1f} s; "
+                        "segments from then on dropped")
+        found = {n: s for n, s in found.items() if s["t_end"] < t}
     missing = set(names) - set(found)
-    if missing:
-        FAILURES.append(f"{folder.name}: no {', '.join(sorted(missing))} segment: {data['message']}")
+    if missing and jump is None:
+        FAILURES.append(f"{flight}: no {', '.join(sorted(missing))} segment: {data['message']}")
     return found
 
 
@@ -114,9 +135,10 @@ def main() -> int:
                     folder = fly(firmware, mission, controller.split("_tilt")[0].removesuffix("_shaped"), seed,
                                  args.speedup, work / firmware / experiment, params, extra)
                     key = (firmware, experiment, controller)
-                    results.setdefault(key, []).append(segments(folder, names))
-                    folders.setdefault(key, folder)
-                    seg = results[key][-1]
+                    seg = segments(folder, names, f"{firmware} {experiment} {controller} seed {seed}")
+                    results.setdefault(key, []).append(seg)
+                    if seed == args.seeds[0]:
+                        folders[key] = folder
                     print(f"{firmware} {experiment} {controller} seed {seed}: " + "; ".join(
                         f"{n} RMS {s['rms_error_m']:.3f} peak {s['peak_error_m']:.3f} m, tilt {s['peak_tilt_deg']:.0f}"
                         for n, s in seg.items()), flush=True)
@@ -153,7 +175,13 @@ def main() -> int:
     return 0
 
 
+COLOURS = {"ism_do": "tab:blue", "pd_do": "tab:green", "pid": "tab:red", "autopilot": "tab:orange",
+           "ism_do_shaped": "tab:cyan"}
+
+
 def draw(folders: dict[tuple[str, str, str], Path], args: argparse.Namespace, path: Path) -> None:
+    """Position error against time from the first measured segment's start, first seed, one panel
+    per firmware and experiment; a flight that ended early is drawn dashed."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -161,22 +189,32 @@ def draw(folders: dict[tuple[str, str, str], Path], args: argparse.Namespace, pa
 
     rows = [(f, e) for f in args.firmware for e in args.experiments if any(k[:2] == (f, e) for k in folders)]
     fig, axs = plt.subplots(len(rows), 1, figsize=(9, 2.6 * len(rows)), squeeze=False)
-    colours = {"ism_do": "tab:blue", "pd_do": "tab:green", "pid": "tab:red", "autopilot": "tab:orange"}
     for ax, (firmware, experiment) in zip(axs[:, 0], rows):
+        names = EXPERIMENTS[experiment][1]
         for (f, e, controller), folder in folders.items():
             if (f, e) != (firmware, experiment):
                 continue
+            data = json.loads((folder / "segments.json").read_text())
+            measured = [s for s in data["segments"] if s["name"] in names]
+            if not measured:
+                continue
+            t0, t1 = measured[0]["t_start"], measured[-1]["t_end"]
+            jump = estimator_jump(folder)
+            if jump is not None:
+                t1 = min(t1, jump[0])
             d = load_timeseries(folder)
-            flying = d["offboard"] == 1
-            t = d["t"][flying]
-            ax.plot(t - t[0], d["error_m"][flying], lw=0.8, color=colours.get(controller, "tab:gray"),
-                    label=LABELS.get(controller, controller))
-        ax.set_title(f"{firmware}: {experiment} (seed {args.seeds[0]})", fontsize=9)
+            keep = (d["t"] >= t0 - 2.0) & (d["t"] <= t1)
+            ended = data["result"] != "completed" or jump is not None
+            label = LABELS.get(controller, controller.replace("autopilot_tilt", "autopilot's own, tilt ") + " deg")
+            ax.plot(d["t"][keep] - t0, d["error_m"][keep], lw=0.8, ls="--" if ended else "-",
+                    color=COLOURS.get(controller, "tab:purple" if "tilt" in controller else "tab:gray"),
+                    label=label + (" (ended early)" if ended else ""))
+        ax.set_title(f"{firmware}: {experiment}, {' then '.join(names)} (seed {args.seeds[0]})", fontsize=9)
         ax.set_ylabel("position error [m]")
         ax.set_yscale("log")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=4)
-    axs[-1, 0].set_xlabel("time in offboard [s]")
+        ax.legend(fontsize=7, ncol=3)
+    axs[-1, 0].set_xlabel("time from the disturbance [s]")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=100)
