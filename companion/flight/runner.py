@@ -428,6 +428,11 @@ class Flight:
                 raise MissionAbort(f"timeout: {what} not within {timeout_v:g} s")
             await asyncio.sleep(0.01)
 
+    @property
+    def last_sent_t(self) -> float:
+        """vehicle time [s] of the newest setpoint sent"""
+        return self._last_sent_t
+
     async def sleep_v(self, seconds: float) -> None:
         """``seconds`` of vehicle time as the telemetry's stamps show it passing."""
         st = self.link.state

@@ -27,6 +27,12 @@ class Flight(Protocol):
     engaged: bool
     expect_offboard: bool
     skipped: list[str]
+    sent: int
+    """setpoints sent so far"""
+
+    @property
+    def last_sent_t(self) -> float:
+        """vehicle time [s] of the newest setpoint sent"""
 
     @property
     def controller(self) -> OffboardController: ...
@@ -56,18 +62,44 @@ async def takeoff(f: Flight, s: Step) -> None:
                   s.timeout_s, f"take-off to {s.altitude_m:g} m", taking_off=True)
 
 
+PRE_STREAM_S = 1.2
+"""vehicle seconds of setpoints before the switch (PX4 wants > 2 Hz for > 1 s)"""
+PRE_STREAM_SETPOINTS = 10
+MODE_RETRY_S = 3.0
+"""vehicle seconds an accepted switch may take to show in the heartbeat before it is asked again"""
+
+
 async def offboard(f: Flight, s: Step) -> None:
     """Stream setpoints (PX4 wants > 2 Hz for > 1 s before the switch), then switch. The controller
     restarts from the vehicle's state right before the switch (integrators and observers empty,
     reference where the vehicle is): until then the autopilot flew its own hold, and what the
-    controller learnt meanwhile was the autopilot's doing, not a disturbance (bumpless)."""
+    controller learnt meanwhile was the autopilot's doing, not a disturbance (bumpless).
+
+    The stream is counted, not slept: a busy host whose vehicle runs ahead of it may have sent no
+    setpoint in 1.2 s of vehicle time. The switch is asked again while the heartbeat does not show
+    it: PX4 v1.16 answers DO_SET_MODE twice, and one answer may accept what the other rejects."""
     c, st = f.controller, f.link.state
     c.start(st)
     f.engaged = True
-    await f.sleep_v(1.2)
+    before, first_t = f.sent, math.nan
+
+    def streamed() -> bool:
+        nonlocal first_t
+        if f.sent > before and math.isnan(first_t):
+            first_t = f.last_sent_t
+        return f.sent - before >= PRE_STREAM_SETPOINTS and st.t - first_t >= PRE_STREAM_S
+
+    await f.until(streamed, s.timeout_s, "a setpoint stream before the switch to offboard")
     c.start(st)
-    await f.link.start_offboard()
-    await f.until(lambda: st.offboard, s.timeout_s, "offboard mode")
+    start = st.t
+    while not st.offboard:
+        asked = st.t
+        await f.link.start_offboard()
+        remaining = s.timeout_s - (st.t - start)
+        await f.until(lambda asked=asked: st.offboard or st.t - asked >= MODE_RETRY_S or st.t - start >= s.timeout_s,
+                      max(remaining, 0.1), "offboard mode")
+        if not st.offboard and st.t - start >= s.timeout_s:
+            raise MissionAbort(f"timeout: offboard mode not within {s.timeout_s:g} s")
     f.expect_offboard = True
 
 
