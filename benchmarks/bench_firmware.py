@@ -42,17 +42,23 @@ LABELS = {"ism_do": "ISM+DO", "pd_do": "PD+DO", "pid": "PID", "autopilot": "auto
           "ism_do_shaped": "ISM+DO, ArduCopter's input shaping kept"}
 TILT_PARAM = {"px4": "MPC_TILTMAX_AIR", "ardupilot": "ATC_ANGLE_MAX"}
 FAILURES: list[str] = []
+FLIGHT_WALL_S = 400.0
+"""a flight takes 5-60 s of wall time; one that has not ended in this long is killed and listed"""
 
 
 def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float, out: Path,
-        firmware_params: dict[str, float], companion_args: tuple[str, ...] = (), again: bool = True) -> Path:
+        firmware_params: dict[str, float], companion_args: tuple[str, ...] = (), again: bool = True) -> Path | None:
     args = [f"--seed={seed}", *(f"--firmware-param={k}={v:g}" for k, v in firmware_params.items())]
     vehicle = FirmwareVehicle(firmware, *args, speedup=speedup, instance=7)
     try:
         r = subprocess.run([sys.executable, "-m", "companion", "fly", str(ROOT / mission), "--connect", vehicle.url,
                             "--controller", controller, "--out", str(out), "--no-plots", "--quiet",
-                            "--connect-timeout", "120", *companion_args], capture_output=True, text=True, timeout=900,
-                           cwd=ROOT)
+                            "--connect-timeout", "120", *companion_args], capture_output=True, text=True,
+                           timeout=FLIGHT_WALL_S, cwd=ROOT)
+    except subprocess.TimeoutExpired:
+        FAILURES.append(f"{firmware} {Path(mission).stem} {controller} seed {seed}: the companion did not end "
+                        f"within {FLIGHT_WALL_S:.0f} s of wall time (killed; its record is incomplete)")
+        return None
     finally:
         vehicle.stop(timeout_s=30)
     said = (r.stdout + r.stderr).strip()  # a flight that ends badly names its folder on stderr
@@ -135,6 +141,8 @@ def main() -> int:
                     folder = fly(firmware, mission, controller.split("_tilt")[0].removesuffix("_shaped"), seed,
                                  args.speedup, work / firmware / experiment, params, extra)
                     key = (firmware, experiment, controller)
+                    if folder is None:
+                        continue
                     seg = segments(folder, names, f"{firmware} {experiment} {controller} seed {seed}")
                     results.setdefault(key, []).append(seg)
                     if seed == args.seeds[0]:
