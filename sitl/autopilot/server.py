@@ -31,6 +31,8 @@ from typing import Any, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.control import quaternion as quat
+from companion.control.vector import Vec3
 from companion.mavlink import ftp
 from companion.mavlink.events import CATALOGUE_PATH, encode_event_frame
 from companion.mavlink.signing import SignatureCheck, enable_signing, is_signed
@@ -41,6 +43,7 @@ from ..percentiles import percentiles_ms
 from .events import catalogue, event_id
 from .guard import StepGuard
 from .logic import Autopilot, MavResult, Severity
+from .shaping import NAN3, TrajectoryTarget, body_to_ned
 from .parameters import ParamTable, build_parameters
 from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
 from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
@@ -573,13 +576,8 @@ class MavlinkServer:
     def _set_position_target(self, msg: Any) -> None:
         if not self._for_us(msg):
             return
-        if msg.coordinate_frame != mavlink.MAV_FRAME_LOCAL_NED or msg.type_mask & 0b111:
-            self._reject("position target: only LOCAL_NED positions are supported")
-            return
-        yaw = msg.yaw if not msg.type_mask & 1024 else math.nan
-        if not math.isfinite(yaw):
-            yaw = self.ap.target_yaw
-        reason = self.ap.position_target(msg.get_srcSystem(), (msg.x, msg.y, msg.z), yaw)
+        target = trajectory_target(msg, self.ap.vehicle.estimator.q)
+        reason = target if isinstance(target, str) else self.ap.position_target(msg.get_srcSystem(), target)
         if reason is not None:
             self._reject(f"position target: {reason}")
             return
@@ -889,6 +887,44 @@ class MavlinkServer:
                 msg = enc[msg_id]()
                 if msg is not None:
                     self._send_to(to, msg)
+
+
+_TYPEMASK_POS = (mavlink.POSITION_TARGET_TYPEMASK_X_IGNORE, mavlink.POSITION_TARGET_TYPEMASK_Y_IGNORE,
+                 mavlink.POSITION_TARGET_TYPEMASK_Z_IGNORE)
+_TYPEMASK_VEL = (mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE, mavlink.POSITION_TARGET_TYPEMASK_VY_IGNORE,
+                 mavlink.POSITION_TARGET_TYPEMASK_VZ_IGNORE)
+_TYPEMASK_ACC = (mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE, mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE,
+                 mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE)
+
+
+def trajectory_target(msg: Any, q: tuple) -> TrajectoryTarget | str:
+    """SET_POSITION_TARGET_LOCAL_NED as PX4 v1.16 reads it (mavlink_receiver.cpp), or why it is refused.
+
+    MAV_FRAME_LOCAL_NED: each position, velocity and acceleration component given unless its type_mask
+    bit says ignore. MAV_FRAME_BODY_NED: the velocity rotated by the heading (all of it ignored if any of
+    its bits is set), the acceleration by the attitude ``q``, the position ignored. Yaw and yaw rate as
+    their bits say. Refused, as PX4 refuses them: any other frame, and an acceleration sent as a force."""
+    mask, frame = msg.type_mask, msg.coordinate_frame
+    pos, vel, acc = (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), (msg.afx, msg.afy, msg.afz)
+
+    def given(values: tuple, bits: tuple) -> Vec3:
+        return tuple(math.nan if mask & b else float(v) for v, b in zip(values, bits))  # type: ignore[return-value]
+
+    if frame == mavlink.MAV_FRAME_LOCAL_NED:
+        p, v, a = given(pos, _TYPEMASK_POS), given(vel, _TYPEMASK_VEL), given(acc, _TYPEMASK_ACC)
+    elif frame == mavlink.MAV_FRAME_BODY_NED:
+        p = NAN3
+        yaw = float(quat.to_euler(q)[2])
+        v = NAN3 if any(mask & b for b in _TYPEMASK_VEL) else body_to_ned(tuple(map(float, vel)), yaw)  # type: ignore[arg-type]
+        a_body = tuple(0.0 if mask & b else float(x) for x, b in zip(acc, _TYPEMASK_ACC))
+        a = NAN3 if all(mask & b for b in _TYPEMASK_ACC) else quat.rotate(q, a_body)  # type: ignore[arg-type]
+    else:
+        return f"coordinate frame {frame} unsupported (LOCAL_NED or BODY_NED)"
+    if mask & mavlink.POSITION_TARGET_TYPEMASK_FORCE_SET and not all(math.isnan(c) for c in a):
+        return "force setpoints not supported"
+    yaw_sp = math.nan if mask & mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE else float(msg.yaw)
+    yaw_rate = math.nan if mask & mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE else float(msg.yaw_rate)
+    return TrajectoryTarget(p, v, a, yaw_sp, yaw_rate)
 
 
 def _bounded_key(table: dict[str, Any], key: str) -> str:
