@@ -75,7 +75,8 @@ DATAGRAMS_PER_SIM_S = 200.0
 """the datagram budget of one source address, per simulated second of the speed-up (a companion
 sends about 110: setpoints at 100 Hz and a heartbeat); the controller's address is exempt"""
 REQUESTS = frozenset({"COMMAND_LONG", "COMMAND_INT", "PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET",
-                      "PING", "TIMESYNC", "REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST"})
+                      "PING", "TIMESYNC", "REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST", "LOG_REQUEST_LIST",
+                      "SERIAL_CONTROL"})
 """messages that cost an answer: each client's are limited (sitl.autopilot.peers.REQUESTS_PER_S)"""
 
 # commands answered by the server itself (the rest go to the autopilot)
@@ -204,6 +205,8 @@ class MavlinkServer:
             "REQUEST_DATA_STREAM": self._request_data_stream,
             "MISSION_REQUEST_LIST": self._mission_request_list,
             "FILE_TRANSFER_PROTOCOL": self._file_transfer,
+            "LOG_REQUEST_LIST": self._log_request_list,
+            "SERIAL_CONTROL": self._serial_control,
         }
 
     # --- sending -------------------------------------------------------------------------
@@ -649,10 +652,12 @@ class MavlinkServer:
             found = self.params.index(name)
             if found is None:
                 self._reject(f"param read: unknown parameter {name!r}")
+                self._param_error(msg, -1)
                 return
             index = found
         if self.params.at(index) is None:
             self._reject(f"param read: no parameter at index {index}")
+            self._param_error(msg, index)
             return
         self._param_value(index)
 
@@ -666,6 +671,16 @@ class MavlinkServer:
             self._reject(f"param set: {reason}")
         if index is not None:
             self._param_value(index, to_all=reason is None)  # the value in force (the old one if refused)
+        else:
+            self._param_error(msg, -1)
+
+    def _param_error(self, msg: Any, index: int) -> None:
+        """PARAM_ERROR (DOES_NOT_EXIST) for a read or write of a parameter this vehicle does not have,
+        to the asker: a client stops asking at once (ArduPilot 4.7 answers so; PX4 v1.16 only logs it on
+        its console, and MAVSDK retries it into a timeout)."""
+        name = _param_name(msg.param_id).encode("ascii", "replace")[:16]
+        self.reply(self.mav.param_error_encode(msg.get_srcSystem(), msg.get_srcComponent(), name, index,
+                                               mavlink.MAV_PARAM_ERROR_DOES_NOT_EXIST))
 
     # --- small protocols -------------------------------------------------------------------
 
@@ -694,6 +709,36 @@ class MavlinkServer:
         elif msg.start_stop:
             for mid, hz in DEFAULT_RATES_HZ.items():
                 self.set_interval(mid, 1.0 / hz, peer)
+
+    def _log_request_list(self, msg: Any) -> None:
+        """The vehicle keeps no logs (its flight record is the client's .tlog): the empty list, as the
+        MAVLink log protocol answers it, one LOG_ENTRY with num_logs 0. (PX4 v1.16 with no log directory
+        stays silent, and MAVSDK's get_entries times out; with logs it lists its ULogs.)"""
+        if not self._for_us(msg):
+            return
+        self.reply(self.mav.log_entry_encode(0, 0, 0, 0, 0))
+
+    SHELL_REPLY = (b"nsh: the bundled vehicle has no shell; PX4's runs under sitl --firmware px4\n"
+                   b"nsh> ")
+    """what a MAVLink shell (MAVSDK's Shell, QGroundControl's MAVLink Console) shows for any input"""
+
+    def _serial_control(self, msg: Any) -> None:
+        """SERIAL_CONTROL to the shell device (what PX4 serves its NuttShell on): answered, as PX4's shell
+        answers, with SERIAL_CONTROL replies carrying text -- here that there is no shell. Other devices
+        (serial passthrough) and replies are ignored, as PX4 ignores them."""
+        target = (getattr(msg, "target_system", 0), getattr(msg, "target_component", 0))  # MAVLink 2 extensions
+        if target[0] not in (0, self.config.sysid) or target[1] not in (0, self.config.compid):
+            return
+        if msg.device != mavlink.SERIAL_CONTROL_DEV_SHELL or msg.flags & mavlink.SERIAL_CONTROL_FLAG_REPLY:
+            return
+        if msg.count == 0:
+            return  # a poll for output: there is none
+        text = self.SHELL_REPLY
+        for start in range(0, len(text), 70):
+            chunk = text[start:start + 70]
+            self.reply(self.mav.serial_control_encode(
+                mavlink.SERIAL_CONTROL_DEV_SHELL, mavlink.SERIAL_CONTROL_FLAG_REPLY, 0, 0, len(chunk),
+                list(chunk.ljust(70, b"\x00"))))
 
     def _mission_request_list(self, msg: Any) -> None:
         if not self._for_us(msg):
