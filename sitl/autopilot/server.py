@@ -48,7 +48,7 @@ from .parameters import ParamTable, build_parameters
 from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
 from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
 
-__all__ = ["ServerConfig", "MavlinkServer", "MAX_PEERS"]
+__all__ = ["ServerConfig", "MavlinkServer", "MAX_PEERS", "PX4_LISTEN", "PX4_PEER", "trajectory_target"]
 
 MAX_DATAGRAM = 4096
 MAX_REASONS = 64
@@ -86,9 +86,15 @@ MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
 MAV_CMD_GET_HOME_POSITION = 410
 
 
+PX4_LISTEN = ("127.0.0.1", 14580)
+"""where PX4 SITL's onboard (API) link listens (instance 0: ``mavlink start -u 14580 -o 14540``)"""
+PX4_PEER = ("127.0.0.1", 14540)
+"""where PX4 SITL sends that link: MAVSDK's and the companion's ``udpin://0.0.0.0:14540``"""
+
+
 @dataclass
 class ServerConfig:
-    listen: tuple[str, int] = ("127.0.0.1", 14540)
+    listen: tuple[str, int] = PX4_LISTEN
     peers: tuple[tuple[str, int], ...] = ()
     """addresses to send to from the start (clients that listen, e.g. MAVSDK's udpin://)"""
     speedup: float = 1.0
