@@ -9,7 +9,8 @@ Rules, as PX4 has them (../shared/MAVLINK.md):
   armed but never lifted off for ``disarm_preflight_s`` disarms, as does ``disarm_land_s`` after
   touch-down;
 - take-off climbs to ``takeoff_alt_m`` above home at ``takeoff_speed_m_s`` and then holds;
-  land descends at ``land_speed_m_s`` and disarms on the ground; RTL flies home, then lands;
+  land descends at ``land_speed_m_s`` below MPC_LAND_ALT2 (5 m), faster above it as PX4 does (up to
+  MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1, 10 m), and disarms on the ground; RTL flies home, then lands;
 - a setpoint (SET_ATTITUDE_TARGET or SET_POSITION_TARGET_LOCAL_NED) counts as proof of life in any
   mode but is flown only in OFFBOARD; switching to OFFBOARD needs one from the requesting system
   within the loss timeout (PX4 v1.16's offboard check: a single fresh setpoint, no rate); in
@@ -513,7 +514,7 @@ class Autopilot:
             self.target = (pos[0], pos[1], z if self.landed else min(pos[2], z))  # never descend
             self.target_yaw = yaw
         elif mode == Mode.LAND:
-            self.ref_filter.params = dataclasses.replace(traj, max_speed_m_s=self.params.land_speed_m_s)
+            self.ref_filter.params = dataclasses.replace(traj, max_speed_m_s=self.land_speed_m_s())
             self.target = (pos[0], pos[1], self.ground_z + 1.0)  # below the ground: keep descending
             self.target_yaw = yaw
             self.touchdown_time = None
@@ -784,6 +785,8 @@ class Autopilot:
                 self.target = (self.home[0], self.home[1], self.target[2])  # land at home, not near it
         if self.landed:
             self.position_loop.reset()  # the ground reaction is not a disturbance to learn
+        if mode == Mode.LAND:
+            self.ref_filter.params = dataclasses.replace(self.ref_filter.params, max_speed_m_s=self.land_speed_m_s())
         v = self.vehicle
         ms = v.tracked
         sf_ned = quat.rotate(v.estimator.q, v.mean_specific_force_body())
@@ -820,6 +823,20 @@ class Autopilot:
             self.target_yaw = s.yaw_rad
         elif self.mode == Mode.RTL:  # home at the height it stopped at, or the take-off height if higher
             self.target = (self.target[0], self.target[1], min(z, self.home[2] - self.takeoff_alt_m))
+
+    LAND_ALT1_M = 10.0
+    """MPC_LAND_ALT1: above this height LAND descends at MPC_Z_VEL_MAX_DN"""
+    LAND_ALT2_M = 5.0
+    """MPC_LAND_ALT2: below this height at MPC_LAND_SPEED; in between, interpolated"""
+
+    def land_speed_m_s(self) -> float:
+        """PX4's descent speed in LAND at the vehicle's height above home (FlightTaskAuto's
+        _prepareLandSetpoints): MPC_LAND_SPEED below MPC_LAND_ALT2, MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1;
+        never below MPC_LAND_SPEED (a faster MPC_LAND_SPEED is flown as set)."""
+        height = self.home[2] - float(self.vehicle.tracked.pos_ned_m[2])
+        slow, fast = self.params.land_speed_m_s, max(self.params.shaping.speed_down_m_s, self.params.land_speed_m_s)
+        k = min(max((height - self.LAND_ALT2_M) / (self.LAND_ALT1_M - self.LAND_ALT2_M), 0.0), 1.0)
+        return slow + k * (fast - slow)
 
     def _blind_descent(self) -> AttitudeSetpoint:
         """Level, descending at BLIND_DESCENT_M_S by the accelerometer alone (no position): the

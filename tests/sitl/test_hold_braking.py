@@ -42,8 +42,8 @@ def fly_then_hold(profile: list[tuple[float, float, float]], hold_s: float = 14.
         for _ in range(int(round(seconds / ap.dt))):
             guard.step()
             if samples is not None and ap._k % 10 == 0:
-                s = v.state
-                samples.append((ap.t, math.degrees(float(quat.tilt_angle(ap.setpoint.q_d))), s.pos_ned_m, s.vel_ned_m_s))
+                s, tilt_sp = v.state, math.degrees(float(quat.tilt_angle(ap.setpoint.q_d)))
+                samples.append((ap.t, tilt_sp, s.pos_ned_m, s.vel_ned_m_s))
 
     run(1.2)
     assert ap.command(400, (1,)).result == MavResult.ACCEPTED
@@ -100,7 +100,8 @@ def test_hold_entered_at_speed_brakes_within_the_braking_limits_and_holds_where_
 
 def test_the_offboard_loss_failsafe_entered_in_a_fast_climb_brakes_before_it_descends():
     """The offboard_attitude example's climb, then its stream stops: the failsafe's LAND brakes first
-    (no loss of control) and the vehicle is descending 10 s later."""
+    (no loss of control) and the vehicle is descending 12 s later, far above MPC_LAND_ALT1, at
+    MPC_Z_VEL_MAX_DN (1.5 m/s) as PX4 does."""
     v = SimVehicle(Scenario(name="unit"), "ism_do", 1, (0.0, 0.0, 0.0), 0.0, hovering=False)
     ap = Autopilot(v, AutopilotParams())
     guard = StepGuard(ap)
@@ -117,4 +118,25 @@ def test_the_offboard_loss_failsafe_entered_in_a_fast_climb_brakes_before_it_des
     for _ in range(12_000):
         guard.step()
     assert ap.terminated is None and ap.mode == Mode.LAND
-    assert 0.3 < v.state.vel_ned_m_s[2] < 1.0  # descending at MPC_LAND_SPEED (0.7 m/s)
+    assert v.state.pos_ned_m[2] < -15.0 and v.state.vel_ned_m_s[2] == pytest.approx(1.5, abs=0.1)
+
+
+def test_land_descends_at_px4s_speeds_for_the_height():
+    """LAND from 20 m: 1.5 m/s (MPC_Z_VEL_MAX_DN) above 10 m (MPC_LAND_ALT1), 0.7 m/s (MPC_LAND_SPEED) below
+    5 m (MPC_LAND_ALT2), in between interpolated (1.1 m/s at 7.5 m); each within 0.1 m/s, then disarmed."""
+    ap, _, _ = fly_then_hold([(0, 0.7, 2.0)], hold_s=6.0)
+    guard = StepGuard(ap)
+    assert ap.set_mode(Mode.LAND).result == MavResult.ACCEPTED
+    seen: dict[float, float] = {}
+    for _ in range(60_000):
+        guard.step()
+        height = -ap.vehicle.state.pos_ned_m[2]
+        for mark in (15.0, 7.5, 3.0):
+            if mark not in seen and height < mark:
+                seen[mark] = ap.vehicle.state.vel_ned_m_s[2]
+        if not ap.armed:
+            break
+    assert seen[15.0] == pytest.approx(1.5, abs=0.1)
+    assert seen[7.5] == pytest.approx(1.1, abs=0.1)
+    assert seen[3.0] == pytest.approx(0.7, abs=0.1)
+    assert not ap.armed and ap.terminated is None
