@@ -463,8 +463,8 @@ class Autopilot:
             self.mode = self.user_mode = Mode.OFFBOARD
             return CommandResult(MavResult.ACCEPTED)
         if mode == Mode.OFFBOARD:
-            if not self.setpoint_fresh(sender):
-                return self._deny("Offboard denied: No offboard signal")
+            if not self.setpoint_fresh(sender):  # PX4: a mode whose requirement fails is temporarily rejected
+                return self._deny("Offboard denied: No offboard signal", MavResult.TEMPORARILY_REJECTED)
             self.offboard_owner = sender
             if self.setpoint_sender != sender:  # the newest setpoint is another system's: not the owner's
                 self.offboard_attitude = AttitudeSetpoint(self.vehicle.estimator.q, (0.0, 0.0, 0.0),
