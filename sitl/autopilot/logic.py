@@ -605,11 +605,11 @@ class Autopilot:
         parts = (target.pos_ned_m, target.vel_ned_m_s, target.accel_ned_m_s2)
         reason = None
         if all(math.isnan(c) for part in parts for c in part):
-            reason = "no position, velocity or acceleration"
+            reason = "no pos, vel or accel"
         elif any(abs(c) > limit for part, limit in zip(parts, self.TARGET_LIMITS) for c in part if not math.isnan(c)):
-            reason = "position target out of range"
+            reason = "out of range"
         elif not all(abs(c) < 1e3 for c in (target.yaw_rad, target.yaw_rate_rad_s) if not math.isnan(c)):
-            reason = "position target out of range"
+            reason = "out of range"
         elif self.mode == Mode.OFFBOARD and self.offboard_owner not in (None, sender):
             reason = "setpoint from a system without offboard control"
         if reason is not None:

@@ -76,7 +76,7 @@ DATAGRAMS_PER_SIM_S = 200.0
 sends about 110: setpoints at 100 Hz and a heartbeat); the controller's address is exempt"""
 REQUESTS = frozenset({"COMMAND_LONG", "COMMAND_INT", "PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET",
                       "PING", "TIMESYNC", "REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST", "LOG_REQUEST_LIST",
-                      "SERIAL_CONTROL"})
+                      "SERIAL_CONTROL", "MISSION_COUNT", "MISSION_CLEAR_ALL"})
 """messages that cost an answer: each client's are limited (sitl.autopilot.peers.REQUESTS_PER_S)"""
 
 # commands answered by the server itself (the rest go to the autopilot)
@@ -212,6 +212,9 @@ class MavlinkServer:
             "MISSION_REQUEST_LIST": self._mission_request_list,
             "FILE_TRANSFER_PROTOCOL": self._file_transfer,
             "LOG_REQUEST_LIST": self._log_request_list,
+            "SET_POSITION_TARGET_GLOBAL_INT": self._set_position_target_global,
+            "MISSION_COUNT": self._mission_count,
+            "MISSION_CLEAR_ALL": self._mission_clear_all,
             "SERIAL_CONTROL": self._serial_control,
         }
 
@@ -582,6 +585,12 @@ class MavlinkServer:
             self._acted_on_t = self.ap.t
         self._setpoint_arrived.set()
 
+    def _set_position_target_global(self, msg: Any) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT (PX4 flies it; MAVSDK's set_position_global): refused, said once
+        per 5 s, not ignored in silence."""
+        if self._for_us(msg):
+            self._reject("GLOBAL_INT setpoint: use LOCAL_NED")
+
     def _set_position_target(self, msg: Any) -> None:
         if not self._for_us(msg):
             return
@@ -745,6 +754,23 @@ class MavlinkServer:
             self.reply(self.mav.serial_control_encode(
                 mavlink.SERIAL_CONTROL_DEV_SHELL, mavlink.SERIAL_CONTROL_FLAG_REPLY, 0, 0, len(chunk),
                 list(chunk.ljust(70, b"\x00"))))
+
+    def _mission_count(self, msg: Any) -> None:
+        """A mission, fence or rally upload: refused at once with MISSION_ACK UNSUPPORTED (the bundled
+        autopilot flies no missions; ``sitl --firmware px4`` does), so an uploader stops instead of
+        retrying into a timeout."""
+        if not self._for_us(msg):
+            return
+        self._reject("mission upload: no missions here")
+        self.reply(self.mav.mission_ack_encode(msg.get_srcSystem(), msg.get_srcComponent(),
+                                               mavlink.MAV_MISSION_UNSUPPORTED, getattr(msg, "mission_type", 0)))
+
+    def _mission_clear_all(self, msg: Any) -> None:
+        """Nothing is stored, so clearing succeeds (MAVSDK's clear_mission, QGroundControl's clear)."""
+        if not self._for_us(msg):
+            return
+        self.reply(self.mav.mission_ack_encode(msg.get_srcSystem(), msg.get_srcComponent(),
+                                               mavlink.MAV_MISSION_ACCEPTED, getattr(msg, "mission_type", 0)))
 
     def _mission_request_list(self, msg: Any) -> None:
         if not self._for_us(msg):
@@ -970,9 +996,9 @@ def trajectory_target(msg: Any, q: tuple) -> TrajectoryTarget | str:
         a_body = tuple(0.0 if mask & b else float(x) for x, b in zip(acc, _TYPEMASK_ACC))
         a = NAN3 if all(mask & b for b in _TYPEMASK_ACC) else quat.rotate(q, a_body)  # type: ignore[arg-type]
     else:
-        return f"coordinate frame {frame} unsupported (LOCAL_NED or BODY_NED)"
+        return f"frame {frame} unsupported"
     if mask & mavlink.POSITION_TARGET_TYPEMASK_FORCE_SET and not all(math.isnan(c) for c in a):
-        return "force setpoints not supported"
+        return "force not supported"
     yaw_sp = math.nan if mask & mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE else float(msg.yaw)
     yaw_rate = math.nan if mask & mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE else float(msg.yaw_rate)
     return TrajectoryTarget(p, v, a, yaw_sp, yaw_rate)

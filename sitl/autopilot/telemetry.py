@@ -225,6 +225,7 @@ class Telemetry:
             | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
             | mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
             | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+            | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT  # it speaks the mission protocol: lists none, refuses uploads
         )
         major, minor, patch = PX4_VERSION
         version = (major << 24) | (minor << 16) | (patch << 8) | mavlink.FIRMWARE_VERSION_TYPE_OFFICIAL
