@@ -491,7 +491,7 @@ class Autopilot:
         pos = self.vehicle.tracked.pos_ned_m
         yaw = float(quat.to_euler(self.vehicle.estimator.q)[2])
         traj = self.vehicle.scenario.trajectory
-        self.braking = False
+        was_braking, self.braking = self.braking, False
         if mode in _POSITION_MODES and prev not in _POSITION_MODES:
             # start the reference where the vehicle is, moving as it moves, and brake it to rest first:
             # the mode's own reference (at most 2 m/s) cannot start faster than that
@@ -502,8 +502,8 @@ class Autopilot:
                 self.position_loop.thrust_n = self.setpoint.thrust_n
             self.braking = not self.landed
             self.ref_filter = ReferenceFilter(traj, pos, yaw, self.vehicle.tracked.vel_ned_m_s)
-        elif mode == Mode.OFFBOARD and self.offboard_target is not None:
-            self._start_trajectory(from_mode_reference=prev in _POSITION_MODES)
+        elif mode == Mode.OFFBOARD and self.offboard_target is not None and not was_braking:
+            self._start_trajectory(from_mode_reference=prev in _POSITION_MODES)  # (braking: go on from its reference)
         if mode in (Mode.HOLD, Mode.GUIDED):
             self.ref_filter.params = traj
             self.target, self.target_yaw = pos, yaw

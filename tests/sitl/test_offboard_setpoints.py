@@ -181,3 +181,23 @@ def test_leaving_offboard_at_speed_brakes_and_holds():
     assert not ap.braking and ap.mode == Mode.HOLD
     assert ap.vehicle.state.pos_ned_m[0] - x0 < 9.0 / 10.0 + 15.0 / 8.0 + 1.0
     assert abs(ap.vehicle.state.vel_ned_m_s[0]) < 0.05
+
+
+def test_back_to_offboard_while_braking_goes_on_from_the_braking_reference():
+    """Flying 3 m/s north, HOLD for 0.3 s (braking), then OFFBOARD again with the same velocity: the
+    reference goes on from where the braking left it (no jump), and the vehicle is back at 3 m/s."""
+    ap = make()
+    airborne(ap)
+    target = TrajectoryTarget(vel_ned_m_s=(3.0, 0.0, 0.0))
+    offboard_with(ap, target)
+    keep_sending(ap, target, 4.0)
+    ap.set_mode(Mode.HOLD, sender=245)
+    keep_sending(ap, target, 0.3)
+    assert ap.braking
+    before = ap.shaped
+    assert ap.set_mode(Mode.OFFBOARD, sender=245).result == MavResult.ACCEPTED
+    assert ap.shaped == before
+    run(ap, 0.01)
+    assert math.dist(ap.shaped.pos_ned_m, before.pos_ned_m) < 0.05
+    keep_sending(ap, target, 3.0)
+    assert ap.vehicle.state.vel_ned_m_s[0] == pytest.approx(3.0, abs=0.1)
