@@ -35,7 +35,7 @@ from companion.control import quaternion as quat
 from companion.mavlink import modes
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
 from companion.control.trajectory import PositionReference, ReferenceFilter
-from companion.control.vector import ZERO3, Vec3
+from companion.control.vector import ZERO3, Vec3, sub
 
 from ..plant.vehicle import SimVehicle
 from .shaping import BRAKE, ShapedReference, ShapingLimits, TrajectoryTarget, at_rest, shape_step
@@ -799,15 +799,22 @@ class Autopilot:
         OFFBOARD, else the mode's filter towards its target."""
         if not (self.braking or self.mode == Mode.OFFBOARD):
             return self.ref_filter.update(self.target, self.target_yaw, self.pos_dt)
-        target = BRAKE if self.braking else self.offboard_target
+        target = self._brake_target() if self.braking else self.offboard_target
         assert target is not None
         if self.shaped is None:
             self.shaped = self._vehicle_reference()
         self.shaped = s = shape_step(self.params.shaping, self.shaped, target, self.pos_dt,
                                      self.vehicle.tracked.pos_ned_m, self.braking)
-        if self.braking and at_rest(s):
+        if self.braking and at_rest(s._replace(vel_ned_m_s=sub(s.vel_ned_m_s, target.vel_ned_m_s))):
             self._stop_braking(s)
         return PositionReference(s.pos_ned_m, s.vel_ned_m_s, s.accel_ned_m_s2, s.yaw_rad)
+
+    def _brake_target(self) -> TrajectoryTarget:
+        """What braking steers to: rest, or for PX4's offboard-loss Descend (no RC), which commands its
+        descent speed at once, that speed (a climb turns into the descent under the same limits)."""
+        if self.failsafe == OFFBOARD_LOST_DESCENDING and self.mode == Mode.LAND:
+            return TrajectoryTarget(vel_ned_m_s=(0.0, 0.0, self.land_speed_m_s()))
+        return BRAKE
 
     def _stop_braking(self, s: ShapedReference) -> None:
         """At rest: the mode's own reference takes over from there (HOLD holds there, LAND descends from
