@@ -1,7 +1,7 @@
 """``companion``: fly a mission offboard, re-draw a flight's plots, or check a mission file.
 
-    companion fly missions/hover45.toml --connect udp://127.0.0.1:14540 --controller ism_do
-    companion fly missions/waypoints.toml --connect udpin://0.0.0.0:14540      # PX4 SITL
+    companion fly missions/hover45.toml --controller ism_do      # sitl or PX4 SITL: udpin://0.0.0.0:14540
+    companion fly missions/waypoints.toml --connect udp://127.0.0.1:14580   # the same, by its listening port
     companion plot flights/20261122-120000_hover45_ism_do
     companion check missions/*.toml
     companion demo                     # start the bundled vehicle, fly hover45 and waypoints
@@ -182,9 +182,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     sub = ap.add_subparsers(dest="command", required=True)
     fly = sub.add_parser("fly", help="fly a mission file")
     fly.add_argument("mission", help="mission file (.toml, or a QGroundControl .plan)")
-    fly.add_argument("--connect", default="udp://127.0.0.1:14540",
-                     help="udp://HOST:PORT (the vehicle listens: the bundled one), udpin://HOST:PORT (the vehicle "
-                          "sends first: PX4 SITL, 14540), tcp://HOST:PORT (ArduPilot SITL: 5760), "
+    fly.add_argument("--connect", default="udpin://0.0.0.0:14540",
+                     help="udpin://HOST:PORT (the vehicle sends first: PX4 SITL and the bundled sitl, 14540; the "
+                          "default), udp://HOST:PORT (a vehicle that listens), tcp://HOST:PORT (ArduPilot SITL: 5760), "
                           "serial:///dev/DEVICE:BAUD (a flight controller's TELEM port)")
     fly.add_argument("--controller", choices=(*POSITION_CONTROLLERS, "autopilot"),
                      help="position controller; autopilot: the autopilot's own position control flies the same "

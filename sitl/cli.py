@@ -1,15 +1,17 @@
 """``sitl``: the simulated vehicle as a MAVLink endpoint — the bundled autopilot on the plant, or
 a real autopilot's SITL build on the plant (``--firmware px4|ardupilot``, :mod:`sitl.firmware`).
 
-    sitl                                   # udp 127.0.0.1:14540, real time, ISM+DO attitude loop
+    sitl                                   # PX4 SITL's ports: listens on 14580, sends to 14540; real time
     sitl --speedup 10 --scenario E5_suspended_weight --attitude pd_do
-    sitl --listen 0.0.0.0:14580 --peer 127.0.0.1:14540   # PX4 style: also push to a listening client
+    sitl --listen 127.0.0.1:14540          # your own ports: answers clients at 14540, sends to no one first
     sitl --firmware px4 --speedup 4 --lockstep             # PX4 v1.16 flies the plant; companion on udpin://0.0.0.0:14540
     sitl --firmware ardupilot --speedup 4 --lockstep       # ArduCopter flies the plant; companion on tcp://127.0.0.1:5760
 
-Clients of the bundled vehicle connect with ``udpout://127.0.0.1:14540`` (MAVSDK),
-``udpout:127.0.0.1:14540`` (pymavlink / MAVProxy ``--master``); with ``--peer`` the vehicle sends
-first, as PX4 does, to a client listening with ``udpin://0.0.0.0:PORT``.
+By default the bundled vehicle uses PX4 SITL's ports: it listens on 127.0.0.1:14580 and sends to
+127.0.0.1:14540 from the start, so a script written for PX4 SITL connects unchanged with
+``udpin://0.0.0.0:14540`` (MAVSDK, the companion) or ``udpin:0.0.0.0:14540`` (pymavlink, MAVProxy
+``--master``); ``udpout://127.0.0.1:14580`` reaches it too. ``--listen`` or ``--peer`` choose the
+ports instead (the vehicle then sends first only to each ``--peer``).
 
 MAVLink 2 signing is on when a key is given, from ``--signing-key-file FILE`` or the environment
 variable MAVLINK_SIGNING_KEY (64 hex digits or a passphrase); never on the command line itself.
@@ -27,7 +29,8 @@ from companion.control.attitude import ATTITUDE_CONTROLLERS
 from companion.mavlink.signing import SigningError
 from companion.mavlink.signing_options import add_signing_options
 
-from .autopilot.cli import _fail, _finite, _int_in, _Parser, build, parse_address, parse_origin, parse_param, serve
+from .autopilot.cli import (PX4_LISTEN, PX4_PEER, _fail, _finite, _int_in, _Parser, build, parse_address, parse_origin,
+                            parse_param, ports, serve)
 from .firmware.cli import add_firmware_options
 from .firmware.cli import run as run_firmware
 from .plant.geo import GeoOrigin
@@ -38,9 +41,12 @@ __all__ = ["main"]
 
 def main(argv: Sequence[str] | None = None) -> int:
     ap = _Parser(prog="sitl", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--listen", type=parse_address, default=("127.0.0.1", 14540), help="HOST:PORT to bind")
-    ap.add_argument("--peer", type=parse_address, action="append", default=[],
-                    help="HOST:PORT to send to from the start (repeatable)")
+    ap.add_argument("--listen", type=parse_address, default=None,
+                    help=f"HOST:PORT to bind (default, with no --peer either: {PX4_LISTEN[0]}:{PX4_LISTEN[1]}, "
+                         "PX4 SITL's)")
+    ap.add_argument("--peer", type=parse_address, action="append", default=None,
+                    help=f"HOST:PORT to send to from the start (repeatable; default, with no --listen either: "
+                         f"{PX4_PEER[0]}:{PX4_PEER[1]}, where PX4 SITL sends)")
     ap.add_argument("--speedup", type=_finite, default=1.0, help="simulated seconds per wall second")
     ap.add_argument("--scenario", help="scenario file or bundled name: vehicle, wind, forces, gains")
     ap.add_argument("--attitude", choices=ATTITUDE_CONTROLLERS, default="ism_do",
@@ -83,6 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for option in ("firmware_path", "layout", "position_source"):
         if getattr(args, option) is not None:
             ap.error(f"--{option.replace('_', '-')} needs --firmware")
+    args.listen, args.peer = ports(args.listen, args.peer)
     try:
         server = build(args)
     except (ConfigError, SigningError) as exc:
@@ -100,7 +107,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _firmware(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """``--firmware``: what the bundled autopilot's options mean does not apply."""
-    for option, default in (("listen", ("127.0.0.1", 14540)), ("peer", []), ("attitude", "ism_do"),
+    for option, default in (("listen", None), ("peer", None), ("attitude", "ism_do"),
                             ("flavour", "px4"), ("sysid", 1), ("wait_for_setpoints", 0.0)):
         if getattr(args, option) != default:
             ap.error(f"--{option.replace('_', '-')} is the bundled autopilot's: with --firmware the firmware's own "

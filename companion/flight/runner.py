@@ -59,7 +59,8 @@ STALLED_S = 0.05
 
 @dataclass
 class FlightOptions:
-    connect: str = "udp://127.0.0.1:14540"
+    connect: str = "udpin://0.0.0.0:14540"
+    """where PX4 SITL, and the bundled ``sitl`` with its default ports, send their API link"""
     backend: str = "pymavlink"
     controller: str | None = None
     """overrides the mission's position controller"""

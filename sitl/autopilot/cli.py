@@ -1,13 +1,13 @@
 """The bundled vehicle behind the ``sitl`` command (:mod:`sitl.cli`): options checked, vehicle
 built, server run.
 
-    sitl                                   # udp 127.0.0.1:14540, real time, ISM+DO attitude loop
+    sitl                                   # PX4 SITL's ports: listens on 14580, sends to 14540; real time
     sitl --speedup 10 --scenario E5_suspended_weight --attitude pd_do
-    sitl --listen 0.0.0.0:14580 --peer 127.0.0.1:14540   # PX4 style: also push to a listening client
+    sitl --listen 127.0.0.1:14540          # your own ports: answers clients at 14540, sends to no one first
 
-Clients connect with ``udpout://127.0.0.1:14540`` (MAVSDK), ``udpout:127.0.0.1:14540``
-(pymavlink / MAVProxy ``--master``); with ``--peer`` the vehicle sends first, as PX4 does, to a
-client listening with ``udpin://0.0.0.0:PORT``.
+With neither ``--listen`` nor ``--peer`` the vehicle takes PX4 SITL's ports (:func:`ports`): clients
+written for PX4 SITL connect unchanged with ``udpin://0.0.0.0:14540`` (MAVSDK, the companion) or
+``udpin:0.0.0.0:14540`` (pymavlink, MAVProxy ``--master``); ``udpout://127.0.0.1:14580`` works too.
 
 MAVLink 2 signing is on when a key is given, from ``--signing-key-file FILE`` or the environment
 variable MAVLINK_SIGNING_KEY (64 hex digits or a passphrase); never on the command line itself.
@@ -32,10 +32,21 @@ from ..plant.scenario import Scenario, load_scenario
 from ..plant.vehicle import SimVehicle
 from .logic import Autopilot, AutopilotParams
 from .parameters import out_of_range
-from .server import MavlinkServer, ServerConfig
+from .server import PX4_LISTEN, PX4_PEER, MavlinkServer, ServerConfig
 from .telemetry import GeoOrigin
 
-__all__ = ["build", "serve", "parse_address", "parse_param", "parse_origin"]
+__all__ = ["build", "serve", "parse_address", "parse_param", "parse_origin", "ports", "PX4_LISTEN", "PX4_PEER"]
+
+
+
+def ports(listen: tuple[str, int] | None, peers: list[tuple[str, int]] | None,
+          ) -> tuple[tuple[str, int], list[tuple[str, int]]]:
+    """The address to bind and the peers to send to from the start: PX4 SITL's pair when neither is
+    given; otherwise what was given (a ``--listen`` alone sends first to no one, a ``--peer`` alone
+    listens on PX4's port)."""
+    if listen is None and peers is None:
+        return PX4_LISTEN, [PX4_PEER]
+    return listen or PX4_LISTEN, list(peers or [])
 
 
 class _Parser(argparse.ArgumentParser):
@@ -161,8 +172,9 @@ async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) ->
     await server.start()
     host, port = server.address
     if not quiet:
+        pushing = "".join(f", sending to udp://{h}:{p} (MAVSDK: udpin://0.0.0.0:{p})" for h, p in server.config.peers)
         print(f"sitl: vehicle sysid {server.config.sysid} compid {server.config.compid} listening on "
-              f"udp://{host}:{port} (MAVSDK: udpout://{host}:{port}), speed-up {server.config.speedup:g}x",
+              f"udp://{host}:{port} (MAVSDK: udpout://{host}:{port}){pushing}, speed-up {server.config.speedup:g}x",
               flush=True)
     await server.run(stop, duration_s)
     report = {"t": round(server.ap.t, 3), "stats": dict(server.stats), "rejections": dict(server.rejections),

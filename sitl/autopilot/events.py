@@ -21,7 +21,7 @@ EVENT_TEXTS = (
     "Disarming denied: in the air",
     "Takeoff denied: disarmed",
     "Offboard denied: another system has control",
-    "Offboard denied: no setpoint stream (>2 Hz)",
+    "Offboard denied: No offboard signal",
     "Mission denied: no mission loaded",
     "RTL denied: not flying",
     "mode change: non-finite parameters",

@@ -9,11 +9,14 @@ Rules, as PX4 has them (../shared/MAVLINK.md):
   armed but never lifted off for ``disarm_preflight_s`` disarms, as does ``disarm_land_s`` after
   touch-down;
 - take-off climbs to ``takeoff_alt_m`` above home at ``takeoff_speed_m_s`` and then holds;
-  land descends at ``land_speed_m_s`` and disarms on the ground; RTL flies home, then lands;
-- a SET_ATTITUDE_TARGET counts as proof of life in any mode but is flown only in OFFBOARD;
-  switching to OFFBOARD needs a live stream (at least ``offboard_min_rate_hz`` over the last
-  second, the last within the loss timeout); in OFFBOARD only the system that switched to it
-  may steer;
+  land descends at ``land_speed_m_s`` below MPC_LAND_ALT2 (5 m), faster above it as PX4 does (up to
+  MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1, 10 m), and disarms on the ground; RTL flies home, then lands;
+- a setpoint (SET_ATTITUDE_TARGET or SET_POSITION_TARGET_LOCAL_NED) counts as proof of life in any
+  mode but is flown only in OFFBOARD; switching to OFFBOARD needs one from the requesting system
+  within the loss timeout (PX4 v1.16's offboard check: a single fresh setpoint, no rate); in
+  OFFBOARD only the system that switched to it may steer;
+- a position mode entered from OFFBOARD brakes first (:mod:`sitl.autopilot.shaping`), at bounded
+  accelerations, and holds, lands or returns from where it stopped;
 - **offboard-loss failsafe**: no setpoint for ``offboard_loss_timeout_s`` -> HOLD at the current
   position; still nothing after ``failsafe_hold_s`` more -> LAND, then disarm. An explicit mode
   change by the operator ends the failsafe.
@@ -31,10 +34,11 @@ from typing import NamedTuple
 from companion.control import quaternion as quat
 from companion.mavlink import modes
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
-from companion.control.trajectory import ReferenceFilter
-from companion.control.vector import ZERO3, Vec3
+from companion.control.trajectory import PositionReference, ReferenceFilter
+from companion.control.vector import ZERO3, Vec3, sub
 
 from ..plant.vehicle import SimVehicle
+from .shaping import BRAKE, ShapedReference, ShapingLimits, TrajectoryTarget, at_rest, shape_step
 
 __all__ = [
     "Mode",
@@ -130,7 +134,6 @@ class AutopilotParams:
     """COM_OF_LOSS_T"""
     failsafe_hold_s: float = 5.0
     """COM_FAIL_ACT_T: hold this long after offboard loss, then land"""
-    offboard_min_rate_hz: float = 2.0
     takeoff_alt_m: float = 2.5
     """MIS_TAKEOFF_ALT"""
     takeoff_speed_m_s: float = 1.5
@@ -176,6 +179,8 @@ class AutopilotParams:
     False: descend and land at once (PX4 v1.16 without RC, the default)"""
     guided_thrust_is_throttle: bool = False
     """ArduPilot GUID_OPTIONS bit 3: thrust is throttle (else a climb rate, 0.5 = hold altitude)"""
+    shaping: ShapingLimits = ShapingLimits()
+    """speeds, accelerations and gains of trajectory setpoints in OFFBOARD and of braking"""
 
 
 HOVER_STALE = 0.95
@@ -252,15 +257,20 @@ class Autopilot:
         self.rejected: dict[str, int] = {}
         """counts of rejected inputs by reason (setpoints, commands), for tests and reports"""
 
-        self.setpoint_times: deque[tuple[float, int]] = deque(maxlen=64)
-        """(time, sender) of recent accepted setpoints"""
+        self.setpoint_time_by_sender: dict[int, float] = {}
+        """when each system's newest accepted setpoint arrived (system ids: at most 256 entries)"""
+        self.setpoints_accepted = 0
         self.last_setpoint_time = -math.inf
         self.setpoint_sender: int | None = None
         """the system whose setpoint is stored (before offboard anyone may stream one)"""
         self.offboard_owner: int | None = None
         self.offboard_attitude: AttitudeSetpoint | None = None
         self.offboard_uses_attitude = True
-        self.offboard_position: tuple[Vec3, float] | None = None
+        self.offboard_target: TrajectoryTarget | None = None
+        """the newest trajectory setpoint (None: the newest setpoint is an attitude)"""
+        self.shaped: ShapedReference | None = None
+        """the reference the position loop tracks while flying a trajectory setpoint or braking"""
+        self.braking = False
 
         self.position_loop = PositionLoop.create(self.params.hold_controller, sc.vehicle, sc.position, sc.reference)
         self.ref_filter = ReferenceFilter(sc.trajectory, vehicle.state.pos_ned_m)
@@ -349,7 +359,7 @@ class Autopilot:
                 return self._deny("Arming denied: not on the ground")
             if self.t < 1.0 or not self.has_position:
                 return self._deny("Arming denied: estimator settling", MavResult.TEMPORARILY_REJECTED)
-            if self.mode == Mode.OFFBOARD and not self.setpoint_stream_active(None):
+            if self.mode == Mode.OFFBOARD and not self.setpoint_fresh(None):
                 return self._deny("Arming denied: No offboard signal", MavResult.TEMPORARILY_REJECTED)
             self.armed = True
             self.arm_time = self.t
@@ -453,13 +463,13 @@ class Autopilot:
             self.mode = self.user_mode = Mode.OFFBOARD
             return CommandResult(MavResult.ACCEPTED)
         if mode == Mode.OFFBOARD:
-            if not self.setpoint_stream_active(sender):
-                return self._deny("Offboard denied: no setpoint stream (>2 Hz)")
+            if not self.setpoint_fresh(sender):  # PX4: a mode whose requirement fails is temporarily rejected
+                return self._deny("Offboard denied: No offboard signal", MavResult.TEMPORARILY_REJECTED)
             self.offboard_owner = sender
             if self.setpoint_sender != sender:  # the newest setpoint is another system's: not the owner's
                 self.offboard_attitude = AttitudeSetpoint(self.vehicle.estimator.q, (0.0, 0.0, 0.0),
                                                           self.vehicle.hover_thrust_n)
-                self.offboard_uses_attitude, self.offboard_position = True, None
+                self.offboard_uses_attitude, self.offboard_target = True, None
                 self.setpoint_sender = sender
         if mode == Mode.TAKEOFF and not self.ardupilot:
             return self._takeoff(math.nan)
@@ -481,11 +491,19 @@ class Autopilot:
         pos = self.vehicle.tracked.pos_ned_m
         yaw = float(quat.to_euler(self.vehicle.estimator.q)[2])
         traj = self.vehicle.scenario.trajectory
+        was_braking, self.braking = self.braking, False
         if mode in _POSITION_MODES and prev not in _POSITION_MODES:
-            # start the reference where the vehicle is, moving as it moves
+            # start the reference where the vehicle is, moving as it moves, and brake it to rest first:
+            # the mode's own reference (at most 2 m/s) cannot start faster than that
+            flying_trajectory = prev == Mode.OFFBOARD and self.offboard_target is not None and self.shaped is not None
+            if not flying_trajectory:
+                self.shaped = self._vehicle_reference()
+                self.position_loop.reset()
+                self.position_loop.thrust_n = self.setpoint.thrust_n
+            self.braking = not self.landed
             self.ref_filter = ReferenceFilter(traj, pos, yaw, self.vehicle.tracked.vel_ned_m_s)
-            self.position_loop.reset()
-            self.position_loop.thrust_n = self.setpoint.thrust_n
+        elif mode == Mode.OFFBOARD and self.offboard_target is not None and not was_braking:
+            self._start_trajectory(from_mode_reference=prev in _POSITION_MODES)  # (braking: go on from its reference)
         if mode in (Mode.HOLD, Mode.GUIDED):
             self.ref_filter.params = traj
             self.target, self.target_yaw = pos, yaw
@@ -496,7 +514,7 @@ class Autopilot:
             self.target = (pos[0], pos[1], z if self.landed else min(pos[2], z))  # never descend
             self.target_yaw = yaw
         elif mode == Mode.LAND:
-            self.ref_filter.params = dataclasses.replace(traj, max_speed_m_s=self.params.land_speed_m_s)
+            self.ref_filter.params = dataclasses.replace(traj, max_speed_m_s=self.land_speed_m_s())
             self.target = (pos[0], pos[1], self.ground_z + 1.0)  # below the ground: keep descending
             self.target_yaw = yaw
             self.touchdown_time = None
@@ -511,13 +529,12 @@ class Autopilot:
 
     # --- offboard setpoints ------------------------------------------------------------
 
-    def setpoint_stream_active(self, sender: int | None = None) -> bool:
-        """Setpoints arrive often enough (from ``sender``, if given) to fly offboard."""
-        t = self.t
-        if t - self.last_setpoint_time > self.params.offboard_loss_timeout_s:
-            return False
-        recent = sum(1 for s, who in self.setpoint_times if t - s <= 1.0 and sender in (None, who))
-        return recent >= max(2, int(self.params.offboard_min_rate_hz))
+    def setpoint_fresh(self, sender: int | None = None) -> bool:
+        """A setpoint (from ``sender``, if given) arrived within the offboard loss timeout: PX4 v1.16's
+        offboard check, which asks for one fresh offboard_control_mode and no rate
+        (commander/HealthAndArmingChecks/checks/offboardCheck.cpp)."""
+        last = self.last_setpoint_time if sender is None else self.setpoint_time_by_sender.get(sender, -math.inf)
+        return self.t - last <= self.params.offboard_loss_timeout_s
 
     def attitude_target(
         self, sender: int, type_mask: int, q: tuple[float, float, float, float], body_rates_rad_s: Vec3,
@@ -575,27 +592,56 @@ class Autopilot:
             self.vehicle.onboard.controller.reset_integral()
             self._rate_q = None
         self.offboard_uses_attitude = use_att
-        self.offboard_position = None
+        self.offboard_target = None
         return None
 
-    def position_target(self, sender: int, pos_ned_m: Vec3, yaw_rad: float) -> str | None:
-        """A SET_POSITION_TARGET_LOCAL_NED (position and yaw); returns a rejection reason or None."""
-        if not all(math.isfinite(c) for c in (*pos_ned_m, yaw_rad)):
-            self._reject("non-finite position target")
-            return "non-finite position target"
-        if self.mode == Mode.OFFBOARD and self.offboard_owner not in (None, sender):
-            self._reject("setpoint from a system without offboard control")
-            return "setpoint from a system without offboard control"
+    TARGET_LIMITS = (1e5, 1e3, 1e3)
+    """the largest position [m], velocity [m/s] and acceleration [m/s^2] a trajectory setpoint may carry"""
+
+    def position_target(self, sender: int, target: TrajectoryTarget) -> str | None:
+        """A trajectory setpoint (SET_POSITION_TARGET_LOCAL_NED, already in NED); returns a rejection
+        reason or None. Rejected: no position, velocity or acceleration at all (PX4: "invalid"), an
+        infinite or absurd value, and a setpoint from a system without offboard control in OFFBOARD."""
+        parts = (target.pos_ned_m, target.vel_ned_m_s, target.accel_ned_m_s2)
+        reason = None
+        if all(math.isnan(c) for part in parts for c in part):
+            reason = "no pos, vel or accel"
+        elif any(abs(c) > limit for part, limit in zip(parts, self.TARGET_LIMITS) for c in part if not math.isnan(c)):
+            reason = "out of range"
+        elif not all(abs(c) < 1e3 for c in (target.yaw_rad, target.yaw_rate_rad_s) if not math.isnan(c)):
+            reason = "out of range"
+        elif self.mode == Mode.OFFBOARD and self.offboard_owner not in (None, sender):
+            reason = "setpoint from a system without offboard control"
+        if reason is not None:
+            self._reject(reason)
+            return reason
         self._note_setpoint(sender)
-        if self.offboard_position is None and self.mode == Mode.OFFBOARD:
-            self._restart_reference()
-        self.offboard_position = (pos_ned_m, yaw_rad)
+        if self.offboard_target is None and self.mode == Mode.OFFBOARD:
+            self._start_trajectory(from_mode_reference=False)
+        self.offboard_target = target
         return None
 
     def _note_setpoint(self, sender: int) -> None:
         self.last_setpoint_time = self.t
-        self.setpoint_times.append((self.t, sender))
+        self.setpoint_time_by_sender[sender] = self.t
+        self.setpoints_accepted += 1
         self.setpoint_sender = sender
+
+    def _vehicle_reference(self) -> ShapedReference:
+        """A reference where the vehicle is, moving as it moves."""
+        ms = self.vehicle.tracked
+        return ShapedReference(ms.pos_ned_m, ms.vel_ned_m_s, ZERO3, float(quat.to_euler(self.vehicle.estimator.q)[2]))
+
+    def _start_trajectory(self, from_mode_reference: bool) -> None:
+        """OFFBOARD begins to fly trajectory setpoints: from the position mode's own reference if one was
+        flying (no jump), else from the vehicle's state with the position loop started afresh."""
+        if from_mode_reference:
+            f = self.ref_filter
+            self.shaped = ShapedReference(f.pos_ned_m, f.vel_ned_m_s, f.accel_ned_m_s2, float(f.yaw_rad))
+            return
+        self.shaped = self._vehicle_reference()
+        self.position_loop.reset()
+        self.position_loop.thrust_n = self.setpoint.thrust_n
 
     # --- stepping ----------------------------------------------------------------------
 
@@ -690,16 +736,9 @@ class Autopilot:
         self.vehicle.onboard.reset()
         self.position_loop.reset()
 
-    def _restart_reference(self) -> None:
-        v = self.vehicle
-        self.ref_filter = ReferenceFilter(
-            v.scenario.trajectory, v.tracked.pos_ned_m, float(quat.to_euler(v.estimator.q)[2]), v.tracked.vel_ned_m_s)
-        self.position_loop.reset()
-        self.position_loop.thrust_n = self.setpoint.thrust_n
-
     def _mode_setpoint(self) -> AttitudeSetpoint:
         mode = self.mode
-        if mode == Mode.OFFBOARD and self.offboard_position is None:
+        if mode == Mode.OFFBOARD and self.offboard_target is None:
             sp = self.offboard_attitude
             if sp is None:
                 return self._idle_setpoint()
@@ -731,9 +770,6 @@ class Autopilot:
                 return self._idle_setpoint()
             if sp is not None:
                 return self._level_keeping_altitude()
-        if mode == Mode.OFFBOARD:
-            assert self.offboard_position is not None
-            self.target, self.target_yaw = self.offboard_position
         if self.landed and mode not in (Mode.TAKEOFF, Mode.OFFBOARD, Mode.GUIDED):
             self._reset_controllers()
             return self._idle_setpoint()
@@ -749,12 +785,65 @@ class Autopilot:
                 self.target = (self.home[0], self.home[1], self.target[2])  # land at home, not near it
         if self.landed:
             self.position_loop.reset()  # the ground reaction is not a disturbance to learn
+        if mode == Mode.LAND:
+            self.ref_filter.params = dataclasses.replace(self.ref_filter.params, max_speed_m_s=self.land_speed_m_s())
         v = self.vehicle
         ms = v.tracked
         sf_ned = quat.rotate(v.estimator.q, v.mean_specific_force_body())
-        ref = self.ref_filter.update(self.target, self.target_yaw, self.pos_dt)
+        ref = self._reference()
         meas = PositionMeasurement(ms.pos_ned_m, ms.vel_ned_m_s, v.estimator.q, sf_ned)
         return self.position_loop.update(meas, ref, self.pos_dt)
+
+    def _reference(self) -> PositionReference:
+        """This position step's reference: the shaped one while braking or flying a trajectory setpoint in
+        OFFBOARD, else the mode's filter towards its target."""
+        if not (self.braking or self.mode == Mode.OFFBOARD):
+            return self.ref_filter.update(self.target, self.target_yaw, self.pos_dt)
+        target = self._brake_target() if self.braking else self.offboard_target
+        assert target is not None
+        if self.shaped is None:
+            self.shaped = self._vehicle_reference()
+        self.shaped = s = shape_step(self.params.shaping, self.shaped, target, self.pos_dt,
+                                     self.vehicle.tracked.pos_ned_m, self.braking)
+        if self.braking and at_rest(s._replace(vel_ned_m_s=sub(s.vel_ned_m_s, target.vel_ned_m_s))):
+            self._stop_braking(s)
+        return PositionReference(s.pos_ned_m, s.vel_ned_m_s, s.accel_ned_m_s2, s.yaw_rad)
+
+    def _brake_target(self) -> TrajectoryTarget:
+        """What braking steers to: rest, or for PX4's offboard-loss Descend (no RC), which commands its
+        descent speed at once, that speed (a climb turns into the descent under the same limits)."""
+        if self.failsafe == OFFBOARD_LOST_DESCENDING and self.mode == Mode.LAND:
+            return TrajectoryTarget(vel_ned_m_s=(0.0, 0.0, self.land_speed_m_s()))
+        return BRAKE
+
+    def _stop_braking(self, s: ShapedReference) -> None:
+        """At rest: the mode's own reference takes over from there (HOLD holds there, LAND descends from
+        there, RTL flies home from there)."""
+        self.braking = False
+        self.ref_filter = ReferenceFilter(self.ref_filter.params, s.pos_ned_m, s.yaw_rad, s.vel_ned_m_s,
+                                          s.accel_ned_m_s2)
+        x, y, z = s.pos_ned_m
+        if self.mode in (Mode.HOLD, Mode.GUIDED):
+            self.target, self.target_yaw = s.pos_ned_m, s.yaw_rad
+        elif self.mode in (Mode.LAND, Mode.TAKEOFF):
+            self.target = (x, y, self.target[2])
+            self.target_yaw = s.yaw_rad
+        elif self.mode == Mode.RTL:  # home at the height it stopped at, or the take-off height if higher
+            self.target = (self.target[0], self.target[1], min(z, self.home[2] - self.takeoff_alt_m))
+
+    LAND_ALT1_M = 10.0
+    """MPC_LAND_ALT1: above this height LAND descends at MPC_Z_VEL_MAX_DN"""
+    LAND_ALT2_M = 5.0
+    """MPC_LAND_ALT2: below this height at MPC_LAND_SPEED; in between, interpolated"""
+
+    def land_speed_m_s(self) -> float:
+        """PX4's descent speed in LAND at the vehicle's height above home (FlightTaskAuto's
+        _prepareLandSetpoints): MPC_LAND_SPEED below MPC_LAND_ALT2, MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1;
+        never below MPC_LAND_SPEED (a faster MPC_LAND_SPEED is flown as set)."""
+        height = self.home[2] - float(self.vehicle.tracked.pos_ned_m[2])
+        slow, fast = self.params.land_speed_m_s, max(self.params.shaping.speed_down_m_s, self.params.land_speed_m_s)
+        k = min(max((height - self.LAND_ALT2_M) / (self.LAND_ALT1_M - self.LAND_ALT2_M), 0.0), 1.0)
+        return slow + k * (fast - slow)
 
     def _blind_descent(self) -> AttitudeSetpoint:
         """Level, descending at BLIND_DESCENT_M_S by the accelerometer alone (no position): the

@@ -31,6 +31,8 @@ from typing import Any, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.control import quaternion as quat
+from companion.control.vector import Vec3
 from companion.mavlink import ftp
 from companion.mavlink.events import CATALOGUE_PATH, encode_event_frame
 from companion.mavlink.signing import VEHICLE_ACCEPTS_UNSIGNED, SignatureCheck, enable_signing, is_signed
@@ -41,11 +43,12 @@ from ..percentiles import percentiles_ms
 from .events import catalogue, event_id
 from .guard import StepGuard
 from .logic import Autopilot, MavResult, Severity
+from .shaping import NAN3, TrajectoryTarget, body_to_ned
 from .parameters import ParamTable, build_parameters
 from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
 from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
 
-__all__ = ["ServerConfig", "MavlinkServer", "MAX_PEERS"]
+__all__ = ["ServerConfig", "MavlinkServer", "MAX_PEERS", "PX4_LISTEN", "PX4_PEER", "trajectory_target"]
 
 MAX_DATAGRAM = 4096
 MAX_REASONS = 64
@@ -72,7 +75,8 @@ DATAGRAMS_PER_SIM_S = 200.0
 """the datagram budget of one source address, per simulated second of the speed-up (a companion
 sends about 110: setpoints at 100 Hz and a heartbeat); the controller's address is exempt"""
 REQUESTS = frozenset({"COMMAND_LONG", "COMMAND_INT", "PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET",
-                      "PING", "TIMESYNC", "REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST"})
+                      "PING", "TIMESYNC", "REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST", "LOG_REQUEST_LIST",
+                      "SERIAL_CONTROL", "MISSION_COUNT", "MISSION_CLEAR_ALL"})
 """messages that cost an answer: each client's are limited (sitl.autopilot.peers.REQUESTS_PER_S)"""
 
 # commands answered by the server itself (the rest go to the autopilot)
@@ -82,9 +86,15 @@ MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
 MAV_CMD_GET_HOME_POSITION = 410
 
 
+PX4_LISTEN = ("127.0.0.1", 14580)
+"""where PX4 SITL's onboard (API) link listens (instance 0: ``mavlink start -u 14580 -o 14540``)"""
+PX4_PEER = ("127.0.0.1", 14540)
+"""where PX4 SITL sends that link: MAVSDK's and the companion's ``udpin://0.0.0.0:14540``"""
+
+
 @dataclass
 class ServerConfig:
-    listen: tuple[str, int] = ("127.0.0.1", 14540)
+    listen: tuple[str, int] = PX4_LISTEN
     peers: tuple[tuple[str, int], ...] = ()
     """addresses to send to from the start (clients that listen, e.g. MAVSDK's udpin://)"""
     speedup: float = 1.0
@@ -199,6 +209,11 @@ class MavlinkServer:
             "REQUEST_DATA_STREAM": self._request_data_stream,
             "MISSION_REQUEST_LIST": self._mission_request_list,
             "FILE_TRANSFER_PROTOCOL": self._file_transfer,
+            "LOG_REQUEST_LIST": self._log_request_list,
+            "SET_POSITION_TARGET_GLOBAL_INT": self._set_position_target_global,
+            "MISSION_COUNT": self._mission_count,
+            "MISSION_CLEAR_ALL": self._mission_clear_all,
+            "SERIAL_CONTROL": self._serial_control,
         }
 
     # --- sending -------------------------------------------------------------------------
@@ -568,16 +583,17 @@ class MavlinkServer:
             self._acted_on_t = self.ap.t
         self._setpoint_arrived.set()
 
+    def _set_position_target_global(self, msg: Any) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT (PX4 flies it; MAVSDK's set_position_global): refused, said once
+        per 5 s, not ignored in silence."""
+        if self._for_us(msg):
+            self._reject("GLOBAL_INT setpoint: use LOCAL_NED")
+
     def _set_position_target(self, msg: Any) -> None:
         if not self._for_us(msg):
             return
-        if msg.coordinate_frame != mavlink.MAV_FRAME_LOCAL_NED or msg.type_mask & 0b111:
-            self._reject("position target: only LOCAL_NED positions are supported")
-            return
-        yaw = msg.yaw if not msg.type_mask & 1024 else math.nan
-        if not math.isfinite(yaw):
-            yaw = self.ap.target_yaw
-        reason = self.ap.position_target(msg.get_srcSystem(), (msg.x, msg.y, msg.z), yaw)
+        target = trajectory_target(msg, self.ap.vehicle.estimator.q)
+        reason = target if isinstance(target, str) else self.ap.position_target(msg.get_srcSystem(), target)
         if reason is not None:
             self._reject(f"position target: {reason}")
             return
@@ -649,10 +665,12 @@ class MavlinkServer:
             found = self.params.index(name)
             if found is None:
                 self._reject(f"param read: unknown parameter {name!r}")
+                self._param_error(msg, -1)
                 return
             index = found
         if self.params.at(index) is None:
             self._reject(f"param read: no parameter at index {index}")
+            self._param_error(msg, index)
             return
         self._param_value(index)
 
@@ -666,6 +684,16 @@ class MavlinkServer:
             self._reject(f"param set: {reason}")
         if index is not None:
             self._param_value(index, to_all=reason is None)  # the value in force (the old one if refused)
+        else:
+            self._param_error(msg, -1)
+
+    def _param_error(self, msg: Any, index: int) -> None:
+        """PARAM_ERROR (DOES_NOT_EXIST) for a read or write of a parameter this vehicle does not have,
+        to the asker: a client stops asking at once (ArduPilot 4.7 answers so; PX4 v1.16 only logs it on
+        its console, and MAVSDK retries it into a timeout)."""
+        name = _param_name(msg.param_id).encode("ascii", "replace")[:16]
+        self.reply(self.mav.param_error_encode(msg.get_srcSystem(), msg.get_srcComponent(), name, index,
+                                               mavlink.MAV_PARAM_ERROR_DOES_NOT_EXIST))
 
     # --- small protocols -------------------------------------------------------------------
 
@@ -694,6 +722,53 @@ class MavlinkServer:
         elif msg.start_stop:
             for mid, hz in DEFAULT_RATES_HZ.items():
                 self.set_interval(mid, 1.0 / hz, peer)
+
+    def _log_request_list(self, msg: Any) -> None:
+        """The vehicle keeps no logs (its flight record is the client's .tlog): the empty list, as the
+        MAVLink log protocol answers it, one LOG_ENTRY with num_logs 0. (PX4 v1.16 with no log directory
+        stays silent, and MAVSDK's get_entries times out; with logs it lists its ULogs.)"""
+        if not self._for_us(msg):
+            return
+        self.reply(self.mav.log_entry_encode(0, 0, 0, 0, 0))
+
+    SHELL_REPLY = (b"nsh: the bundled vehicle has no shell; PX4's runs under sitl --firmware px4\n"
+                   b"nsh> ")
+    """what a MAVLink shell (MAVSDK's Shell, QGroundControl's MAVLink Console) shows for any input"""
+
+    def _serial_control(self, msg: Any) -> None:
+        """SERIAL_CONTROL to the shell device (what PX4 serves its NuttShell on): answered, as PX4's shell
+        answers, with SERIAL_CONTROL replies carrying text -- here that there is no shell. Other devices
+        (serial passthrough) and replies are ignored, as PX4 ignores them."""
+        target = (getattr(msg, "target_system", 0), getattr(msg, "target_component", 0))  # MAVLink 2 extensions
+        if target[0] not in (0, self.config.sysid) or target[1] not in (0, self.config.compid):
+            return
+        if msg.device != mavlink.SERIAL_CONTROL_DEV_SHELL or msg.flags & mavlink.SERIAL_CONTROL_FLAG_REPLY:
+            return
+        if msg.count == 0:
+            return  # a poll for output: there is none
+        text = self.SHELL_REPLY
+        for start in range(0, len(text), 70):
+            chunk = text[start:start + 70]
+            self.reply(self.mav.serial_control_encode(
+                mavlink.SERIAL_CONTROL_DEV_SHELL, mavlink.SERIAL_CONTROL_FLAG_REPLY, 0, 0, len(chunk),
+                list(chunk.ljust(70, b"\x00"))))
+
+    def _mission_count(self, msg: Any) -> None:
+        """A mission, fence or rally upload: refused at once with MISSION_ACK UNSUPPORTED (the bundled
+        autopilot flies no missions; ``sitl --firmware px4`` does), so an uploader stops instead of
+        retrying into a timeout."""
+        if not self._for_us(msg):
+            return
+        self._reject("mission upload: no missions here")
+        self.reply(self.mav.mission_ack_encode(msg.get_srcSystem(), msg.get_srcComponent(),
+                                               mavlink.MAV_MISSION_UNSUPPORTED, getattr(msg, "mission_type", 0)))
+
+    def _mission_clear_all(self, msg: Any) -> None:
+        """Nothing is stored, so clearing succeeds (MAVSDK's clear_mission, QGroundControl's clear)."""
+        if not self._for_us(msg):
+            return
+        self.reply(self.mav.mission_ack_encode(msg.get_srcSystem(), msg.get_srcComponent(),
+                                               mavlink.MAV_MISSION_ACCEPTED, getattr(msg, "mission_type", 0)))
 
     def _mission_request_list(self, msg: Any) -> None:
         if not self._for_us(msg):
@@ -887,6 +962,44 @@ class MavlinkServer:
                 msg = enc[msg_id]()
                 if msg is not None:
                     self._send_to(to, msg)
+
+
+_TYPEMASK_POS = (mavlink.POSITION_TARGET_TYPEMASK_X_IGNORE, mavlink.POSITION_TARGET_TYPEMASK_Y_IGNORE,
+                 mavlink.POSITION_TARGET_TYPEMASK_Z_IGNORE)
+_TYPEMASK_VEL = (mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE, mavlink.POSITION_TARGET_TYPEMASK_VY_IGNORE,
+                 mavlink.POSITION_TARGET_TYPEMASK_VZ_IGNORE)
+_TYPEMASK_ACC = (mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE, mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE,
+                 mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE)
+
+
+def trajectory_target(msg: Any, q: tuple) -> TrajectoryTarget | str:
+    """SET_POSITION_TARGET_LOCAL_NED as PX4 v1.16 reads it (mavlink_receiver.cpp), or why it is refused.
+
+    MAV_FRAME_LOCAL_NED: each position, velocity and acceleration component given unless its type_mask
+    bit says ignore. MAV_FRAME_BODY_NED: the velocity rotated by the heading (all of it ignored if any of
+    its bits is set), the acceleration by the attitude ``q``, the position ignored. Yaw and yaw rate as
+    their bits say. Refused, as PX4 refuses them: any other frame, and an acceleration sent as a force."""
+    mask, frame = msg.type_mask, msg.coordinate_frame
+    pos, vel, acc = (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), (msg.afx, msg.afy, msg.afz)
+
+    def given(values: tuple, bits: tuple) -> Vec3:
+        return tuple(math.nan if mask & b else float(v) for v, b in zip(values, bits))  # type: ignore[return-value]
+
+    if frame == mavlink.MAV_FRAME_LOCAL_NED:
+        p, v, a = given(pos, _TYPEMASK_POS), given(vel, _TYPEMASK_VEL), given(acc, _TYPEMASK_ACC)
+    elif frame == mavlink.MAV_FRAME_BODY_NED:
+        p = NAN3
+        yaw = float(quat.to_euler(q)[2])
+        v = NAN3 if any(mask & b for b in _TYPEMASK_VEL) else body_to_ned(tuple(map(float, vel)), yaw)  # type: ignore[arg-type]
+        a_body = tuple(0.0 if mask & b else float(x) for x, b in zip(acc, _TYPEMASK_ACC))
+        a = NAN3 if all(mask & b for b in _TYPEMASK_ACC) else quat.rotate(q, a_body)  # type: ignore[arg-type]
+    else:
+        return f"frame {frame} unsupported"
+    if mask & mavlink.POSITION_TARGET_TYPEMASK_FORCE_SET and not all(math.isnan(c) for c in a):
+        return "force not supported"
+    yaw_sp = math.nan if mask & mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE else float(msg.yaw)
+    yaw_rate = math.nan if mask & mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE else float(msg.yaw_rate)
+    return TrajectoryTarget(p, v, a, yaw_sp, yaw_rate)
 
 
 def _bounded_key(table: dict[str, Any], key: str) -> str:

@@ -19,7 +19,7 @@ from companion.control import quaternion as quat
 from ..plant.geo import GeoOrigin
 from .logic import Autopilot, custom_mode
 
-__all__ = ["GeoOrigin", "Telemetry", "DEFAULT_RATES_HZ", "SYS_STATUS_SENSORS", "PREARM_CHECK"]
+__all__ = ["GeoOrigin", "Telemetry", "DEFAULT_RATES_HZ", "SYS_STATUS_SENSORS", "PREARM_CHECK", "PX4_VERSION"]
 
 POSITION_STALE_S = 0.1
 """tracking samples normally arrive every 17 ms, 10 ms late"""
@@ -41,6 +41,9 @@ SYS_STATUS_SENSORS = (
     | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
 )
 PREARM_CHECK = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+
+PX4_VERSION = (1, 16, 0)
+"""the PX4 release whose behaviour the bundled vehicle imitates (docs/sitl.md), reported in AUTOPILOT_VERSION"""
 
 DEFAULT_RATES_HZ: dict[int, float] = {
     mavlink.MAVLINK_MSG_ID_HEARTBEAT: 1.0,
@@ -222,8 +225,10 @@ class Telemetry:
             | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
             | mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
             | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+            | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT  # it speaks the mission protocol: lists none, refuses uploads
         )
-        version = (1 << 24) | (15 << 16) | (0 << 8) | 255  # 1.15.0, release
+        major, minor, patch = PX4_VERSION
+        version = (major << 24) | (minor << 16) | (patch << 8) | mavlink.FIRMWARE_VERSION_TYPE_OFFICIAL
         return self.mav.autopilot_version_encode(
             caps, version, version, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0x15D0_0001, [0] * 18
         )

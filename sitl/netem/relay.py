@@ -1,6 +1,6 @@
 """A UDP relay that impairs a MAVLink link: loss, delay with jitter, duplication, reordering, outages.
 
-    sitl-relay --listen 127.0.0.1:14600 --to 127.0.0.1:14540 --loss 0.1 --delay-ms 20 --jitter-ms 10
+    sitl-relay --listen 127.0.0.1:14600 --to 127.0.0.1:14580 --loss 0.1 --delay-ms 20 --jitter-ms 10
     sitl-relay ... --up loss=0.3 --down delay_ms=80        # per direction
     sitl-relay ... --outage 12:2.5 --outage 30:1:up        # scheduled outages (s after the first packet)
     kill -USR1 <pid>                                      # an outage of --signal-outage-s, now
@@ -277,7 +277,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="sitl-relay", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--listen", type=_address, default=("127.0.0.1", 14600), help="where the client connects")
-    ap.add_argument("--to", type=_address, default=("127.0.0.1", 14540), help="the vehicle")
+    ap.add_argument("--to", type=_address, default=("127.0.0.1", 14580), help="the vehicle (default: sitl's port)")
     ap.add_argument("--loss", type=float, default=0.0, help="probability, both directions")
     ap.add_argument("--delay-ms", type=float, default=0.0)
     ap.add_argument("--jitter-ms", type=float, default=0.0)

@@ -11,7 +11,7 @@ from pymavlink import mavutil
 
 from companion.mavlink.modes import COPTER_MODES, px4_custom_mode
 
-from .conftest import latest, stream, stream_until, wait
+from .conftest import SPEED, latest, stream, stream_until, wait
 
 pytestmark = [pytest.mark.integration, pytest.mark.contract]
 
@@ -83,8 +83,13 @@ def _stream_until_mode(m, px4, mode: str, timeout: float = 10.0) -> None:
     assert stream_until(m, px4.sysid, (1.0, 0, 0, 0), 0.5, in_mode, timeout), f"not in {mode} within {timeout} s"
 
 
-def _airborne_in_offboard(m, px4, hover: float = 0.5) -> None:
+def _airborne_in_offboard(m, px4, hover: float | None = None) -> None:
+    """Taken off, then in OFFBOARD on a level attitude at the vehicle's own hover thrust (MPC_THR_HOVER:
+    SIH's 0.5 is a 4.9 m/s^2 climb on the bundled vehicle, whose hover is 0.33)."""
     heartbeat(m)
+    if hover is None:
+        m.mav.param_request_read_send(px4.sysid, 1, b"MPC_THR_HOVER", -1)
+        hover = wait(m, "PARAM_VALUE", lambda p: p.param_id == "MPC_THR_HOVER").param_value
     armable(m)
     assert command(m, px4, 176, 1, 4, 3) == 0
     assert command(m, px4, 400, 1) == 0
@@ -126,6 +131,49 @@ def test_px4_an_attitude_with_roll_and_pitch_rates_ignored_is_flown(px4):
     m.mav.set_attitude_target_send(0, px4.sysid, 1, 3, list(roll), 0, 0, 0, 0.52)
     att = latest(m, "ATTITUDE")
     assert abs(math.degrees(att.roll) - 10.0) < 4.0, math.degrees(att.roll)
+
+
+def _vehicle_seconds_pass(m, seconds: float) -> None:
+    """Read until the autopilot's own stamps have advanced by ``seconds`` (a busy host slows the vehicle)."""
+    t0 = latest(m, "ATTITUDE").time_boot_ms
+    wait(m, "ATTITUDE", lambda a: a.time_boot_ms > t0 + seconds * 1e3, timeout=seconds / SPEED + 20.0)
+
+
+def _mode_command_once(m, target, mode: str, timeout: float = 5.0) -> int:
+    """One DO_SET_MODE, the worst of its ACKs' results; not retried (a retry would come after the
+    setpoint went stale). PX4 v1.16 answers DO_SET_MODE twice, and a refused OFFBOARD comes as
+    ACCEPTED then TEMPORARILY_REJECTED (measured on SIH): every ACK within 0.5 s of the first counts."""
+    main, sub = px4_custom_mode(mode) >> 16 & 0xFF, px4_custom_mode(mode) >> 24
+    m.mav.command_long_send(target.sysid, 1, 176, 0, 1, main, sub, 0, 0, 0, 0)
+    results = [wait(m, "COMMAND_ACK", lambda a: a.command == 176, timeout).result]
+    end = time.monotonic() + 0.5
+    while time.monotonic() < end:
+        ack = m.recv_match(type="COMMAND_ACK", blocking=True, timeout=0.1)
+        if ack is not None and ack.command == 176:
+            results.append(ack.result)
+    return max(results)
+
+
+def test_px4_takes_offboard_on_one_fresh_setpoint_and_rejects_it_on_a_stale_one(px4):
+    """PX4 v1.16's offboard check (commander offboardCheck.cpp) wants one offboard_control_mode younger
+    than COM_OF_LOSS_T and no rate. Armed in HOLD on the ground: one SET_ATTITUDE_TARGET, COM_OF_LOSS_T +
+    0.5 s of vehicle time with nothing more, DO_SET_MODE offboard -> TEMPORARILY_REJECTED (its answer to a
+    mode whose requirement fails); then one SET_ATTITUDE_TARGET and at once DO_SET_MODE offboard ->
+    ACCEPTED (what MAVSDK's offboard.start() does after a single set_attitude)."""
+    m = px4.connect()
+    heartbeat(m)
+    m.mav.param_request_read_send(px4.sysid, 1, b"COM_OF_LOSS_T", -1)
+    loss_t = wait(m, "PARAM_VALUE", lambda p: p.param_id == "COM_OF_LOSS_T").param_value
+    armable(m)
+    assert command(m, px4, 176, 1, 4, 3) == 0  # HOLD
+    assert command(m, px4, 400, 1) == 0
+    level = [1.0, 0.0, 0.0, 0.0]
+    m.mav.set_attitude_target_send(0, px4.sysid, 1, 7, level, 0, 0, 0, 0.0)
+    _vehicle_seconds_pass(m, loss_t + 0.5)
+    assert _mode_command_once(m, px4, "OFFBOARD") == mavutil.mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+    m.mav.set_attitude_target_send(0, px4.sysid, 1, 7, level, 0, 0, 0, 0.0)
+    assert _mode_command_once(m, px4, "OFFBOARD") == mavutil.mavlink.MAV_RESULT_ACCEPTED
+    m.mav.command_long_send(px4.sysid, 1, 400, 0, 0, 21196, 0, 0, 0, 0, 0)  # disarm on the ground
 
 
 # --- ArduCopter ---------------------------------------------------------------------------------

@@ -74,7 +74,7 @@ class Px4Sih:
         return self.instance + 1
 
     def start(self) -> Px4Sih:
-        if not _port_free(self.api_port):
+        if not (_port_free(self.api_port) and _port_free(14580 + self.instance)):  # a plain `sitl` holds 14580
             free = next((n for n in range(10) if _port_free(14540 + n) and _port_free(14580 + n)
                          and not Path(f"/tmp/px4_lock-{n}").exists()), None)
             if free is None:

@@ -76,7 +76,7 @@ async def fly(url: str) -> dict:
 
         streamer = asyncio.create_task(stream())
         try:
-            await asyncio.sleep(1.5)  # > 2 Hz for > 1 s before switching, PX4's rule
+            await asyncio.sleep(1.5)  # streaming before switching, as a companion does (PX4 needs one fresh setpoint)
             ack = await direct.send_command(command_message(176, 1, 6, 0))
             out["offboard_ack"] = json.loads(ack.fields_json)["result"]
             out["mode"] = await first(tel.subscribe_flight_mode(), lambda m: m.name == "OFFBOARD")

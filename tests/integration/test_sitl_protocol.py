@@ -35,6 +35,7 @@ def test_identity_version_home_and_ping(sitl, client):
     v = c.wait("AUTOPILOT_VERSION")
     assert v.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     assert v.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
+    assert v.flight_sw_version >> 8 == (1 << 16) | (16 << 8)  # PX4 1.16.0, the release it imitates
     assert c.command(512, mavlink.MAVLINK_MSG_ID_HOME_POSITION) == 0
     home = c.wait("HOME_POSITION")
     assert abs(home.latitude - 473977420) < 10 and home.altitude == 488000

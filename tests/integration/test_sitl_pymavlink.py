@@ -75,7 +75,7 @@ def test_offboard_attitude_flight_with_quaternion_rates_and_thrust(sitl, client)
     assert 0.3 < hover < 0.37  # 0.63 kg * 9.81 / 18.56 N
 
     level = quat.from_yaw(yaw)
-    stream(c, level, hover, 1.0)  # > 2 Hz for > 1 s before the switch, as PX4 requires
+    stream(c, level, hover, 1.0)  # a stream before the switch, as a companion sends one (PX4 needs one fresh setpoint)
     switch_to_offboard(c, level, hover)
 
     roll = math.radians(20.0)
@@ -121,12 +121,14 @@ def test_timestamps_are_simulated_time_at_any_speed(sitl, client):
     assert simulated / wall <= 4.3 and (simulated + skipped) / wall >= 3.6, (simulated, skipped, wall)
 
 
-def test_offboard_is_refused_without_a_setpoint_stream(sitl, client):
+def test_offboard_is_refused_without_a_fresh_setpoint(sitl, client):
+    """No setpoint within COM_OF_LOSS_T: refused as PX4 v1.16 refuses it (TEMPORARILY_REJECTED, 'No offboard
+    signal')."""
     s = sitl()
     c = client(s.url)
     take_off(c)
-    assert c.set_mode(6, 0) == mavutil.mavlink.MAV_RESULT_DENIED
-    c.text("Offboard denied")
+    assert c.set_mode(6, 0) == mavutil.mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+    c.text("Offboard denied: No offboard signal")
     assert s.stop()["mode"] == "HOLD"
 
 

@@ -75,7 +75,7 @@ def test_another_systems_stream_neither_enables_offboard_nor_becomes_the_owners_
     ap = make()
     airborne(ap)
     stream(ap, 1.0, sender=77)
-    assert ap.set_mode(Mode.OFFBOARD, sender=200).result == MavResult.DENIED  # 200 has not streamed
+    assert ap.set_mode(Mode.OFFBOARD, sender=200).result == MavResult.TEMPORARILY_REJECTED  # 200 has not streamed
     stream(ap, 1.0, sender=200)
     rogue = quat.from_euler(math.radians(60), 0.0, 0.0)
     assert ap.attitude_target(77, 0, rogue, (0.0, 0.0, 0.0), 1.0) is None  # the newest, before offboard

@@ -127,3 +127,23 @@ def run_firmware(capsys, *args: str) -> tuple[int, list[str]]:  # type: ignore[n
 def test_firmware_options_are_checked(capsys, args, says) -> None:  # type: ignore[no-untyped-def]
     code, err = run_firmware(capsys, *args)
     assert code == 2 and len(err) == 1 and says in err[0], err
+
+
+def test_with_neither_listen_nor_peer_the_vehicle_takes_px4_sitls_ports() -> None:
+    """Plain ``sitl`` listens where PX4 SITL's API link does (14580) and sends to where PX4 SITL sends it
+    (14540), so a script written for PX4 SITL (MAVSDK ``udpin://0.0.0.0:14540``) connects unchanged;
+    either option given, the ports are the user's (a --listen alone sends first to no one)."""
+    from sitl.autopilot.cli import ports
+
+    assert ports(None, None) == (("127.0.0.1", 14580), [("127.0.0.1", 14540)])
+    assert ports(("127.0.0.1", 14540), None) == (("127.0.0.1", 14540), [])
+    assert ports(None, [("10.0.0.2", 14550)]) == (("127.0.0.1", 14580), [("10.0.0.2", 14550)])
+    assert ports(("0.0.0.0", 9000), [("127.0.0.1", 9001)]) == (("0.0.0.0", 9000), [("127.0.0.1", 9001)])
+
+
+def test_the_banner_says_where_the_vehicle_sends_and_how_mavsdk_listens_there(capsys) -> None:  # type: ignore[no-untyped-def]
+    peer = free_port()
+    assert main(["--listen", f"127.0.0.1:{free_port()}", "--peer", f"127.0.0.1:{peer}", "--duration", "0.001",
+                 "--no-signing"]) == 0
+    banner = capsys.readouterr().out.splitlines()[0]
+    assert f"sending to udp://127.0.0.1:{peer} (MAVSDK: udpin://0.0.0.0:{peer})" in banner, banner
