@@ -44,11 +44,11 @@ class VehicleLink(abc.ABC):
     gate: StampGate
     """which telemetry stamps are believed (companion/link/stamps.py); counts into ``stats``"""
 
-    def _admit(self, stamp_s: float, wall: float) -> Admitted | None:
-        """A sample's stamp through the gate; on a change of the vehicle's time base the clock and
-        the held stamps start over."""
+    def _admit(self, stamp_s: float, wall: float, wraps: bool = False) -> Admitted | None:
+        """A sample's stamp through the gate (``wraps``: a ``time_boot_ms``, unwrapped there); on a
+        change of the vehicle's time base the clock and the held stamps start over."""
         before = self.gate.rebases
-        admitted = self.gate.admit(stamp_s, wall, self.clock.rate if self.clock.ready else 1.0)
+        admitted = self.gate.admit(stamp_s, wall, self.clock.rate if self.clock.ready else 1.0, wraps)
         if self.gate.rebases != before:
             self.clock.reset()
             self.state.restart_time()

@@ -32,6 +32,7 @@ from .base import LinkError, TrafficHook, VehicleLink
 from .url import Endpoint, parse_endpoint
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
 from companion.mavlink import ftp
+from companion.mavlink.boot_time import boot_ms
 from companion.mavlink.events import MSG_ID_EVENT, EventCatalogue, parse_event
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID, decode_value, encode_value, param_name
 from companion.mavlink.signing import SignatureCheck, describe_rejections, enable_signing, fingerprint
@@ -266,12 +267,12 @@ class PymavlinkLink(VehicleLink):
             return
         st.wall_last = wall
         if kind == "ATTITUDE_QUATERNION":
-            a = self._admit(msg.time_boot_ms * 1e-3, wall)
+            a = self._admit(msg.time_boot_ms * 1e-3, wall, wraps=True)
             if a is not None and self._valid(st.set_attitude(
                     (msg.q1, msg.q2, msg.q3, msg.q4), (msg.rollspeed, msg.pitchspeed, msg.yawspeed), a.t_s, wall)):
                 self._observe(a, wall)
         elif kind == "LOCAL_POSITION_NED":
-            a = self._admit(msg.time_boot_ms * 1e-3, wall)
+            a = self._admit(msg.time_boot_ms * 1e-3, wall, wraps=True)
             if a is not None and self._valid(st.set_position(
                     (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), a.t_s, wall)):
                 self._observe(a, wall)
@@ -283,7 +284,7 @@ class PymavlinkLink(VehicleLink):
                     self._observe(a, wall)
         elif kind == "SCALED_IMU" and not self._highres_seen:
             # an autopilot without HIGHRES_IMU: the first IMU's accelerometer, in milli-g
-            a = self._admit(msg.time_boot_ms * 1e-3, wall)
+            a = self._admit(msg.time_boot_ms * 1e-3, wall, wraps=True)
             g = 9.80665e-3
             if a is not None and self._valid(st.set_imu((msg.xacc * g, msg.yacc * g, msg.zacc * g), a.t_s, wall)):
                 self._observe(a, wall)
@@ -562,21 +563,21 @@ class PymavlinkLink(VehicleLink):
     # --- setpoints and parameters ----------------------------------------------------------
 
     def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0) -> None:
-        t_ms = int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF
+        t_ms = boot_ms(self.state.t)
         self._send(self.mav.set_attitude_target_encode(
             t_ms, self.state.sysid or 1, self.state.compid or 1, type_mask, [float(c) for c in q],
             float(body_rates_rad_s[0]), float(body_rates_rad_s[1]), float(body_rates_rad_s[2]), float(thrust)))
         self.stats["setpoints"] += 1
 
     def send_position_target(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, yaw_rad: float) -> None:
-        t_ms = int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF
+        t_ms = boot_ms(self.state.t)
         self._send(self.mav.set_position_target_local_ned_encode(
             t_ms, self.state.sysid or 1, self.state.compid or 1, mavlink.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
             *(float(c) for c in (*pos_ned_m, *vel_ned_m_s, *accel_ned_m_s2)), float(yaw_rad), 0.0))
         self.stats["setpoints"] += 1
 
     def send_debug(self, t_s: float, vectors: dict[str, Vec3], values: dict[str, float]) -> None:
-        t_us, t_ms = int(max(t_s, 0.0) * 1e6), int(max(t_s, 0.0) * 1e3) & 0xFFFFFFFF
+        t_us, t_ms = int(max(t_s, 0.0) * 1e6), boot_ms(t_s)
         for name, v in vectors.items():
             self._send(self.mav.debug_vect_encode(name.encode()[:10], t_us, *(float(c) for c in v)))
         for name, x in values.items():
