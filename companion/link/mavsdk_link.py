@@ -40,7 +40,7 @@ from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 from companion.link.state import VehicleState
 
-from .base import LinkError, TrafficHook, VehicleLink
+from .base import ConnectWait, LinkError, TrafficHook, VehicleLink
 from .url import parse_endpoint
 from .flavour import PX4, Flavour
 
@@ -111,8 +111,11 @@ class MavsdkLink(VehicleLink):
             self._tap.close()
             self._tap = None
 
-    async def wait_connected(self, timeout_s: float) -> None:
+    async def wait_connected(self, timeout_s: float, position_wait_s: float = 0.0) -> None:
+        """An autopilot, then its navigation telemetry, within ``timeout_s`` of wall time in all
+        (:class:`~companion.link.base.ConnectWait`)."""
         assert self._sdk is not None
+        start = time.monotonic()
         system = await self._sdk.first_autopilot(timeout_s=timeout_s)
         if system is None:
             raise LinkError(f"no autopilot found at {self.url} within {timeout_s:g} s")
@@ -130,10 +133,12 @@ class MavsdkLink(VehicleLink):
                            (self.telemetry.set_rate_position_velocity_ned, 60.0),
                            (self.telemetry.set_rate_imu, 100.0)):
             try:
-                await setter(hz)
-            except Exception:
+                async with asyncio.timeout(max(start + timeout_s - time.monotonic(), 0.0)):
+                    await setter(hz)
+            except Exception:  # refused, or the time to connect has run out (the wait below says so)
                 self.stats["rate_requests_refused"] += 1
-        await self._wait_navigation(timeout_s)  # run() fills the state; it must already be running
+        # run() fills the state; it must already be running
+        await self._wait_navigation(ConnectWait(timeout_s, position_wait_s), start)
 
     # --- telemetry -------------------------------------------------------------------------
 
