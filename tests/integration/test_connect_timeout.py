@@ -9,6 +9,7 @@ answers nothing; it records when the companion connected and when it hung up."""
 
 from __future__ import annotations
 
+import select
 import socket
 import subprocess
 import sys
@@ -42,10 +43,8 @@ class MutePeer:
     def _run(self) -> None:
         conn, _ = self.server.accept()
         self.accepted = time.monotonic()
-        conn.settimeout(0.0)
         mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-        period = 1.0 / self.attitude_hz if self.attitude_hz else 1.0
-        next_beat = 0.0
+        next_beat = next_attitude = self.accepted
         k = 0
         try:
             while True:
@@ -54,17 +53,15 @@ class MutePeer:
                     conn.sendall(mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
                                                       mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 0,
                                                       mavlink.MAV_STATE_STANDBY).pack(mav))
-                    next_beat = now + 1.0
-                if self.attitude_hz:
+                    next_beat += 1.0
+                if self.attitude_hz and now >= next_attitude:
                     k += 1
-                    conn.sendall(mav.attitude_quaternion_encode(round(1000 * k * period), 1.0, 0.0, 0.0, 0.0,
-                                                                0.0, 0.0, 0.0).pack(mav))
-                try:
-                    if conn.recv(65536) == b"":
-                        break  # the companion hung up
-                except BlockingIOError:
-                    pass
-                time.sleep(period)
+                    conn.sendall(mav.attitude_quaternion_encode(round(1000 * k / self.attitude_hz), 1.0, 0.0, 0.0,
+                                                                0.0, 0.0, 0.0, 0.0).pack(mav))
+                    next_attitude += 1.0 / self.attitude_hz
+                readable, _, _ = select.select([conn], [], [], 0.01)  # the hang-up seen within 10 ms
+                if readable and conn.recv(65536) == b"":
+                    break
         except OSError:
             pass
         self.closed = time.monotonic()
