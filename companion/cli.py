@@ -63,7 +63,8 @@ def _fly(args: argparse.Namespace) -> int:
     opts = FlightOptions(mission_file=Path(args.mission),
                          connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
                          out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet, signing_key=key,
-                         connect_timeout_s=args.connect_timeout, output=args.output, take_over=args.take_over,
+                         connect_timeout_s=args.connect_timeout, position_wait_s=args.position_wait,
+                         output=args.output, take_over=args.take_over,
                          ardupilot_shaping=args.ardupilot_shaping)
     try:
         flight = Flight(mission, opts)
@@ -193,8 +194,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     fly.add_argument("--backend", choices=("pymavlink", "mavsdk"), default="pymavlink")
     fly.add_argument("--thrust-max", type=float, help="thrust at full throttle [N] (default: ask the vehicle)")
     fly.add_argument("--out", default="flights", help="folder for flight records")
-    fly.add_argument("--connect-timeout", type=float, default=20.0, metavar="S",
-                     help="give up if no autopilot heartbeat and telemetry within S seconds (default 20)")
+    fly.add_argument("--connect-timeout", type=_positive, default=20.0, metavar="S",
+                     help="give up if no autopilot heartbeat and telemetry (attitude and position) within S seconds "
+                          "of wall time, whatever else the peer sends (default 20)")
+    fly.add_argument("--position-wait", type=_non_negative, default=0.0, metavar="S",
+                     help="a vehicle that sends attitude but no position yet (its estimator has no origin: "
+                          "ArduCopter SITL about 40 s after boot) is waited for S seconds more than "
+                          "--connect-timeout, with a progress line every 5 s (default 0: not waited for)")
     fly.add_argument("--output", choices=("auto", "attitude", "rates", "attitude_rates"), default="auto",
                      help="what SET_ATTITUDE_TARGET carries: attitude (q, thrust, yaw-rate feed-forward; the "
                           "default), rates (body rates and thrust: the attitude loop closed here), attitude_rates "

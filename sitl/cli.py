@@ -71,6 +71,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="while flying a companion's stream, advance the simulated world only as setpoints arrive, "
                          "PERIOD_MS (default 10: a 100 Hz companion) per setpoint; --speedup stays the upper "
                          "bound. Host load then changes how long a flight takes, not what it measures")
+    ap.add_argument("--boot-time", type=_finite, default=0.0, metavar="SECONDS",
+                    help="how long the vehicle has been up when it starts [s]: every stamp it sends starts there. "
+                         "time_boot_ms wraps at 2^32 ms (4294967.296 s, 49.7 days): --boot-time 4294937 wraps it "
+                         "30 simulated seconds after start (0..1e8, default 0)")
     ap.add_argument("--duration", type=_finite, default=None, help="stop after this many simulated seconds")
     add_signing_options(ap)
     add_firmware_options(ap)
@@ -82,6 +86,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         ap.error("--wait-for-setpoints must be 0 (off) or within 0.005..0.5 s (below the 1 s offboard-loss timeout)")
     if not (args.lockstep == 0 or 1.0 <= args.lockstep <= 100.0):
         ap.error("--lockstep must be a period of 1..100 ms")
+    if not 0.0 <= args.boot_time <= 1e8:
+        ap.error("--boot-time must be within 0..1e8 s (3 years; stamps of 1e9 s and more read as UNIX time)")
     if args.duration is not None and args.duration <= 0:
         ap.error("--duration must be positive")
     if args.firmware is not None:
@@ -108,7 +114,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _firmware(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """``--firmware``: what the bundled autopilot's options mean does not apply."""
     for option, default in (("listen", None), ("peer", None), ("attitude", "ism_do"),
-                            ("flavour", "px4"), ("sysid", 1), ("wait_for_setpoints", 0.0)):
+                            ("flavour", "px4"), ("sysid", 1), ("wait_for_setpoints", 0.0), ("boot_time", 0.0)):
         if getattr(args, option) != default:
             ap.error(f"--{option.replace('_', '-')} is the bundled autopilot's: with --firmware the firmware's own "
                      f"ports, attitude loop and rules apply")

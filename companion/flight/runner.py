@@ -67,6 +67,9 @@ class FlightOptions:
     rate_hz: float | None = None
     out_dir: Path = Path("flights")
     connect_timeout_s: float = 20.0
+    """wall seconds for an autopilot's heartbeat and its navigation telemetry, all told"""
+    position_wait_s: float = 0.0
+    """wall seconds more for a position, for a vehicle that sends attitude but has none yet"""
     thrust_max_n: float | None = None
     quiet: bool = False
     signing_key: bytes | None = field(default=None, repr=False)
@@ -447,7 +450,7 @@ class Flight:
         try:
             self.log(f"connecting to {self.opt.connect} ({self.opt.backend})")
             link.progress = self.log
-            await link.wait_connected(self.opt.connect_timeout_s)
+            await link.wait_connected(self.opt.connect_timeout_s, self.opt.position_wait_s)
             self.log(f"connected: {link.state.autopilot} system {link.state.sysid}, mode {link.state.mode}")
             self.output = choose_output(self.opt.output, link.state.autopilot)
             self.log(f"setpoints: {self.output.mode} (type_mask {self.output.type_mask})")

@@ -7,6 +7,7 @@ import asyncio
 import math
 import time
 from collections import Counter
+from dataclasses import dataclass
 from typing import Callable
 
 from companion.link.clock import VehicleClock
@@ -17,20 +18,63 @@ from companion.link.state import VehicleState
 
 from .flavour import Flavour
 
-__all__ = ["LinkError", "VehicleLink", "TrafficHook"]
+__all__ = ["LinkError", "VehicleLink", "TrafficHook", "ConnectWait", "PROGRESS_EVERY_S"]
 
 TrafficHook = Callable[[bytes], None]
 """called with every raw datagram sent or received (for the .tlog)"""
 
 
-POSITION_WAIT_S = 120.0
-"""how long a vehicle that answers may take to have a position (ArduCopter SITL: ~42 s at 1x)"""
 REASON_WAIT_S = 0.3
 """wall seconds to wait for the text that explains a refused command"""
 
 
+PROGRESS_EVERY_S = 5.0
+"""wall seconds between progress lines while waiting for a vehicle's telemetry"""
+
+
 class LinkError(RuntimeError):
     """The vehicle did not answer, refused, or went away."""
+
+
+@dataclass(frozen=True)
+class ConnectWait:
+    """How long connecting may take, in wall seconds from its start: an autopilot's heartbeat
+    *and* its navigation telemetry (attitude and position) within ``timeout_s``
+    (``--connect-timeout``), whatever the peer sends meanwhile. Only a vehicle that already sends
+    attitude but has no position yet (its estimator has no origin: ArduCopter ~40 s after boot)
+    may be waited for longer, ``position_wait_s`` more (``--position-wait``, 0 by default), and
+    every :data:`PROGRESS_EVERY_S` the wait says so."""
+
+    timeout_s: float
+    position_wait_s: float = 0.0
+
+    def deadline_s(self, has_attitude: bool) -> float:
+        """Seconds after the start of connecting by which position and attitude must flow."""
+        return self.timeout_s + (self.position_wait_s if has_attitude else 0.0)
+
+    def progress(self, elapsed_s: float, has_attitude: bool) -> str:
+        """The progress line while waiting ``elapsed_s`` into connecting."""
+        if not has_attitude:
+            return (f"vehicle found, waiting for its telemetry (ATTITUDE_QUATERNION, LOCAL_POSITION_NED): "
+                    f"{elapsed_s:.0f} s of --connect-timeout {self.timeout_s:g} s")
+        if elapsed_s <= self.timeout_s:
+            extra = f", then up to {self.position_wait_s:g} s more (--position-wait)" if self.position_wait_s else ""
+            return (f"vehicle found, waiting for its position (LOCAL_POSITION_NED; attitude flows): "
+                    f"{elapsed_s:.0f} s of --connect-timeout {self.timeout_s:g} s{extra}")
+        return (f"still no position (LOCAL_POSITION_NED) after {elapsed_s:.0f} s: waiting up to "
+                f"{self.deadline_s(True) - elapsed_s:.0f} s more (--position-wait {self.position_wait_s:g})")
+
+    def failure(self, elapsed_s: float, has_attitude: bool) -> str:
+        """Why connecting gave up, and what to try."""
+        if not has_attitude:
+            return (f"the autopilot answers (heartbeat) but sent no attitude and no position within "
+                    f"{elapsed_s:.0f} s (--connect-timeout {self.timeout_s:g}): does it stream telemetry to "
+                    f"this link (ATTITUDE_QUATERNION, LOCAL_POSITION_NED)?")
+        longer = ("; a vehicle whose estimator needs longer can be waited for with --position-wait S "
+                  "(ArduCopter SITL: about 40 s after boot)" if not self.position_wait_s else "")
+        return (f"the autopilot sends attitude but no position (LOCAL_POSITION_NED) after {elapsed_s:.0f} s "
+                f"(--connect-timeout {self.timeout_s:g}, --position-wait {self.position_wait_s:g}): GPS or "
+                f"position source, EKF origin?{longer}")
 
 
 class VehicleLink(abc.ABC):
@@ -44,11 +88,11 @@ class VehicleLink(abc.ABC):
     gate: StampGate
     """which telemetry stamps are believed (companion/link/stamps.py); counts into ``stats``"""
 
-    def _admit(self, stamp_s: float, wall: float) -> Admitted | None:
-        """A sample's stamp through the gate; on a change of the vehicle's time base the clock and
-        the held stamps start over."""
+    def _admit(self, stamp_s: float, wall: float, wraps: bool = False) -> Admitted | None:
+        """A sample's stamp through the gate (``wraps``: a ``time_boot_ms``, unwrapped there); on a
+        change of the vehicle's time base the clock and the held stamps start over."""
         before = self.gate.rebases
-        admitted = self.gate.admit(stamp_s, wall, self.clock.rate if self.clock.ready else 1.0)
+        admitted = self.gate.admit(stamp_s, wall, self.clock.rate if self.clock.ready else 1.0, wraps)
         if self.gate.rebases != before:
             self.clock.reset()
             self.state.restart_time()
@@ -67,26 +111,23 @@ class VehicleLink(abc.ABC):
     progress: Callable[[str], None] | None = None
     """where connection progress is reported (the flight's log)"""
 
-    async def _wait_navigation(self, timeout_s: float) -> None:
-        """After the heartbeat: until position and attitude flow. An autopilot whose estimator has
-        no origin yet (ArduCopter: ~40 s after boot) sends attitude but no LOCAL_POSITION_NED: that
-        is waited for with progress, not mistaken for a missing vehicle."""
+    async def _wait_navigation(self, wait: ConnectWait, start: float) -> float:
+        """After the heartbeat: until position and attitude flow, by ``wait``'s deadline counted
+        from ``start`` (wall, monotonic), with a progress line every :data:`PROGRESS_EVERY_S`.
+        Returns the deadline that applied (wall)."""
         st = self.state
-        timeout_s = max(timeout_s, POSITION_WAIT_S)
-        end = time.monotonic() + timeout_s
-        said = 0.0
+        said, extra = -math.inf, False
         while not st.has_navigation:
             now = time.monotonic()
-            if now > end:
-                have = "attitude but no position (its estimator has no origin yet)" if math.isfinite(st.t_att) \
-                    else "no attitude and no position"
-                raise LinkError(f"the autopilot answers but sends {have} after {timeout_s:g} s "
-                                "(LOCAL_POSITION_NED, ATTITUDE_QUATERNION): GPS or position source, EKF origin?")
-            if self.progress is not None and now - said > 5.0:
-                said = now
-                self.progress("vehicle found, waiting for its position (LOCAL_POSITION_NED)..." if
-                              math.isfinite(st.t_att) else "vehicle found, waiting for its telemetry...")
+            has_attitude = math.isfinite(st.t_att)
+            if now - start >= wait.deadline_s(has_attitude):
+                raise LinkError(wait.failure(now - start, has_attitude))
+            past_timeout = now - start > wait.timeout_s  # the --position-wait has begun: say so at once
+            if self.progress is not None and (now - said >= PROGRESS_EVERY_S or past_timeout != extra):
+                said, extra = now, past_timeout
+                self.progress(wait.progress(now - start, has_attitude))
             await asyncio.sleep(0.05)
+        return start + wait.deadline_s(True)
 
     async def _refusal_reason(self, before: int) -> str:
         """What the autopilot said after a refusal (texts since index ``before``), the most severe
@@ -116,8 +157,9 @@ class VehicleLink(abc.ABC):
         """Read telemetry and keep the link alive (heartbeats) until ``stop`` is set."""
 
     @abc.abstractmethod
-    async def wait_connected(self, timeout_s: float) -> None:
-        """Until an autopilot's heartbeat and navigation telemetry arrive; LinkError on timeout."""
+    async def wait_connected(self, timeout_s: float, position_wait_s: float = 0.0) -> None:
+        """Until an autopilot's heartbeat and navigation telemetry arrive, within ``timeout_s`` of
+        wall time in all (:class:`ConnectWait`); LinkError when they do not."""
 
     @abc.abstractmethod
     async def set_arming_mode(self) -> None:

@@ -33,13 +33,14 @@ from mavsdk.plugins.mavlink_direct import MavlinkMessage
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.link.clock import VehicleClock
+from companion.mavlink.boot_time import boot_ms
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID
 from companion.link.stamps import StampGate
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 from companion.link.state import VehicleState
 
-from .base import LinkError, TrafficHook, VehicleLink
+from .base import ConnectWait, LinkError, TrafficHook, VehicleLink
 from .url import parse_endpoint
 from .flavour import PX4, Flavour
 
@@ -110,8 +111,11 @@ class MavsdkLink(VehicleLink):
             self._tap.close()
             self._tap = None
 
-    async def wait_connected(self, timeout_s: float) -> None:
+    async def wait_connected(self, timeout_s: float, position_wait_s: float = 0.0) -> None:
+        """An autopilot, then its navigation telemetry, within ``timeout_s`` of wall time in all
+        (:class:`~companion.link.base.ConnectWait`)."""
         assert self._sdk is not None
+        start = time.monotonic()
         system = await self._sdk.first_autopilot(timeout_s=timeout_s)
         if system is None:
             raise LinkError(f"no autopilot found at {self.url} within {timeout_s:g} s")
@@ -129,10 +133,12 @@ class MavsdkLink(VehicleLink):
                            (self.telemetry.set_rate_position_velocity_ned, 60.0),
                            (self.telemetry.set_rate_imu, 100.0)):
             try:
-                await setter(hz)
-            except Exception:
+                async with asyncio.timeout(max(start + timeout_s - time.monotonic(), 0.0)):
+                    await setter(hz)
+            except Exception:  # refused, or the time to connect has run out (the wait below says so)
                 self.stats["rate_requests_refused"] += 1
-        await self._wait_navigation(timeout_s)  # run() fills the state; it must already be running
+        # run() fills the state; it must already be running
+        await self._wait_navigation(ConnectWait(timeout_s, position_wait_s), start)
 
     # --- telemetry -------------------------------------------------------------------------
 
@@ -160,7 +166,7 @@ class MavsdkLink(VehicleLink):
     async def _attitude(self) -> None:
         async for q in self.telemetry.subscribe_attitude_quaternion():
             now = self._seen()
-            a = self._admit(q.timestamp_us * 1e-6, now)
+            a = self._admit(q.timestamp_us * 1e-6, now, wraps=True)  # from time_boot_ms
             if a is not None and self._valid(self.state.set_attitude((q.w, q.x, q.y, q.z), None, a.t_s, now)):
                 self._observe(a, now)
 
@@ -279,7 +285,7 @@ class MavsdkLink(VehicleLink):
     # --- setpoints and parameters ----------------------------------------------------------
 
     def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0) -> None:
-        fields = {"time_boot_ms": int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF,
+        fields = {"time_boot_ms": boot_ms(self.state.t),
                   "target_system": self.state.sysid, "target_component": 1, "type_mask": type_mask,
                   "q": [float(c) for c in q], "body_roll_rate": float(body_rates_rad_s[0]),
                   "body_pitch_rate": float(body_rates_rad_s[1]), "body_yaw_rate": float(body_rates_rad_s[2]),
@@ -296,7 +302,7 @@ class MavsdkLink(VehicleLink):
         x, y, z = (float(c) for c in pos_ned_m)
         vx, vy, vz = (float(c) for c in vel_ned_m_s)
         ax, ay, az = (float(c) for c in accel_ned_m_s2)
-        fields = {"time_boot_ms": int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF,
+        fields = {"time_boot_ms": boot_ms(self.state.t),
                   "target_system": self.state.sysid, "target_component": 1, "coordinate_frame": 1,
                   "type_mask": 2048, "x": x, "y": y, "z": z, "vx": vx, "vy": vy, "vz": vz, "afx": ax, "afy": ay,
                   "afz": az, "yaw": float(yaw_rad), "yaw_rate": 0.0}
@@ -309,7 +315,7 @@ class MavsdkLink(VehicleLink):
                 float(yaw_rad), 0.0).pack(self._log_mav))
 
     def send_debug(self, t_s: float, vectors: dict[str, Vec3], values: dict[str, float]) -> None:
-        t_us, t_ms = int(max(t_s, 0.0) * 1e6), int(max(t_s, 0.0) * 1e3) & 0xFFFFFFFF
+        t_us, t_ms = int(max(t_s, 0.0) * 1e6), boot_ms(t_s)
         messages = [("DEBUG_VECT", {"name": name[:10], "time_usec": t_us, "x": float(v[0]), "y": float(v[1]),
                                     "z": float(v[2])}) for name, v in vectors.items()]
         messages += [("NAMED_VALUE_FLOAT", {"time_boot_ms": t_ms, "name": name[:10], "value": float(x)})

@@ -28,10 +28,11 @@ from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 from companion.link.state import VehicleState
 
-from .base import LinkError, TrafficHook, VehicleLink
+from .base import ConnectWait, LinkError, TrafficHook, VehicleLink
 from .url import Endpoint, parse_endpoint
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
 from companion.mavlink import ftp
+from companion.mavlink.boot_time import boot_ms
 from companion.mavlink.events import MSG_ID_EVENT, EventCatalogue, parse_event
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID, decode_value, encode_value, param_name
 from companion.mavlink.signing import SignatureCheck, describe_rejections, enable_signing, fingerprint
@@ -266,12 +267,12 @@ class PymavlinkLink(VehicleLink):
             return
         st.wall_last = wall
         if kind == "ATTITUDE_QUATERNION":
-            a = self._admit(msg.time_boot_ms * 1e-3, wall)
+            a = self._admit(msg.time_boot_ms * 1e-3, wall, wraps=True)
             if a is not None and self._valid(st.set_attitude(
                     (msg.q1, msg.q2, msg.q3, msg.q4), (msg.rollspeed, msg.pitchspeed, msg.yawspeed), a.t_s, wall)):
                 self._observe(a, wall)
         elif kind == "LOCAL_POSITION_NED":
-            a = self._admit(msg.time_boot_ms * 1e-3, wall)
+            a = self._admit(msg.time_boot_ms * 1e-3, wall, wraps=True)
             if a is not None and self._valid(st.set_position(
                     (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), a.t_s, wall)):
                 self._observe(a, wall)
@@ -283,7 +284,7 @@ class PymavlinkLink(VehicleLink):
                     self._observe(a, wall)
         elif kind == "SCALED_IMU" and not self._highres_seen:
             # an autopilot without HIGHRES_IMU: the first IMU's accelerometer, in milli-g
-            a = self._admit(msg.time_boot_ms * 1e-3, wall)
+            a = self._admit(msg.time_boot_ms * 1e-3, wall, wraps=True)
             g = 9.80665e-3
             if a is not None and self._valid(st.set_imu((msg.xacc * g, msg.yacc * g, msg.zacc * g), a.t_s, wall)):
                 self._observe(a, wall)
@@ -371,7 +372,11 @@ class PymavlinkLink(VehicleLink):
 
     # --- connection ----------------------------------------------------------------------
 
-    async def wait_connected(self, timeout_s: float) -> None:
+    async def wait_connected(self, timeout_s: float, position_wait_s: float = 0.0) -> None:
+        """Heartbeat, then navigation telemetry, all within ``timeout_s`` of wall time from now; up
+        to ``position_wait_s`` more for a position if attitude already flows
+        (:class:`~companion.link.base.ConnectWait`). The streams are asked for meanwhile, best
+        effort: requests a peer never answers are dropped at the deadline."""
         where = self.endpoint.url
         start = time.monotonic()
         hinted = False
@@ -384,7 +389,7 @@ class PymavlinkLink(VehicleLink):
         if not self.stats["received"]:
             raise LinkError(self._silence_hint(timeout_s))
         try:
-            await asyncio.wait_for(self._connected.wait(), max(timeout_s - (time.monotonic() - start), 1.0))
+            await asyncio.wait_for(self._connected.wait(), max(start + timeout_s - time.monotonic(), 0.05))
         except TimeoutError:
             beats = {k.rsplit(" ", 1)[0]: n for k, n in self.signing_rejections.items() if k.endswith(" HEARTBEAT")}
             if beats:
@@ -403,23 +408,37 @@ class PymavlinkLink(VehicleLink):
                         f"{fingerprint(self.signature_check.key)})?")
             raise LinkError(f"{where} answers, but with no autopilot heartbeat within {timeout_s:g} s (a ground "
                             f"station or another program on that port?){hint}") from None
-        assert self.flavour is not None
-        if self.flavour is ARDUPILOT:
-            await self._prepare_ardupilot()
-        else:
+        # the requests go out while the wait for telemetry (and its progress lines) runs
+        asking = asyncio.create_task(self._ask_for_telemetry())
+        try:
+            await self._wait_navigation(ConnectWait(timeout_s, position_wait_s), start)
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(asking, max(start + timeout_s - time.monotonic(), 0.0))
+        finally:
+            if not asking.done():
+                asking.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await asking
+        # what is not telemetry, once telemetry flows (each bounded on its own: a few seconds at most)
+        if self.flavour is not ARDUPILOT:
             await self._load_events()
-        for msg_id, hz in STREAM_RATES_HZ.items():
-            await self.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz, require_ack=False)
-        await self.command_long(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
-                                require_ack=False, attempts=2)
-        # every parameter, for the flight record's snapshot (they arrive while the mission flies)
-        self._send(self.mav.param_request_list_encode(self.state.sysid, self.state.compid))
-        await self._wait_navigation(timeout_s)
         if not self._highres_seen:  # an autopilot without HIGHRES_IMU: its SCALED_IMU, if it has one
             await self.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_SCALED_IMU,
                                     1e6 / STREAM_RATES_HZ[mavlink.MAVLINK_MSG_ID_HIGHRES_IMU], require_ack=False,
                                     attempts=2)
             await asyncio.sleep(0.3)
+
+    async def _ask_for_telemetry(self) -> None:
+        """The streams the controller needs, the autopilot's version and every parameter (for the
+        flight record: they arrive while the mission flies)."""
+        assert self.flavour is not None
+        if self.flavour is ARDUPILOT:
+            await self._prepare_ardupilot()
+        for msg_id, hz in STREAM_RATES_HZ.items():
+            await self.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / hz, require_ack=False)
+        self._send(self.mav.param_request_list_encode(self.state.sysid, self.state.compid))
+        await self.command_long(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                                require_ack=False, attempts=2)
 
     def _silence_hint(self, after_s: float) -> str:
         """What to check when nothing at all arrived in ``after_s``: the endpoint first, then signing."""
@@ -562,21 +581,21 @@ class PymavlinkLink(VehicleLink):
     # --- setpoints and parameters ----------------------------------------------------------
 
     def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0) -> None:
-        t_ms = int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF
+        t_ms = boot_ms(self.state.t)
         self._send(self.mav.set_attitude_target_encode(
             t_ms, self.state.sysid or 1, self.state.compid or 1, type_mask, [float(c) for c in q],
             float(body_rates_rad_s[0]), float(body_rates_rad_s[1]), float(body_rates_rad_s[2]), float(thrust)))
         self.stats["setpoints"] += 1
 
     def send_position_target(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, yaw_rad: float) -> None:
-        t_ms = int(round(max(self.state.t, 0.0) * 1000)) & 0xFFFFFFFF
+        t_ms = boot_ms(self.state.t)
         self._send(self.mav.set_position_target_local_ned_encode(
             t_ms, self.state.sysid or 1, self.state.compid or 1, mavlink.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
             *(float(c) for c in (*pos_ned_m, *vel_ned_m_s, *accel_ned_m_s2)), float(yaw_rad), 0.0))
         self.stats["setpoints"] += 1
 
     def send_debug(self, t_s: float, vectors: dict[str, Vec3], values: dict[str, float]) -> None:
-        t_us, t_ms = int(max(t_s, 0.0) * 1e6), int(max(t_s, 0.0) * 1e3) & 0xFFFFFFFF
+        t_us, t_ms = int(max(t_s, 0.0) * 1e6), boot_ms(t_s)
         for name, v in vectors.items():
             self._send(self.mav.debug_vect_encode(name.encode()[:10], t_us, *(float(c) for c in v)))
         for name, x in values.items():

@@ -30,6 +30,22 @@ them, advancing at a plausible rate, over at least ``rebase_span_s`` of wall tim
 with the old base has arrived for ``rebase_silence_s`` (wall), become the new base (counted
 ``stamp_rebased``). An attacker mixing a few frames into a live stream can never meet that: the
 live stream keeps the old base from falling silent.
+
+**A wrap is not a jump.** ``time_boot_ms`` (uint32 ms) wraps to 0 after 49.7 days of uptime;
+``time_usec`` runs on. The link says which kind each stamp is (``wraps``), and a wrapping stamp
+is unwrapped about the newest believed one (:func:`companion.mavlink.boot_time.unwrap_boot_s`)
+before the rules above judge it. A stamp just past 0 after one near 2^32 ms is then a few
+milliseconds later, believed (counted ``stamp_wrapped``) and placed at the vehicle's true time
+since boot, where its ``time_usec`` streams already are. What the rules refuse stays refused: a
+stamp far behind the newest unwraps to far behind; a stamp near 0 that would put the vehicle
+further past the wrap than it can have lived since is a jump forward.
+
+Which wrap a vehicle is on cannot be told from ``time_boot_ms`` alone. The first stamp of a
+link is taken as wrap 0; when the link's first believed stamps were all ``time_boot_ms`` and,
+within ``epoch_learn_s`` (wall) of the first, a ``time_usec`` stamp arrives a whole number of
+periods ahead of them (a vehicle up for more than 49.7 days), that is the vehicle's time: the
+base moves there once (counted ``stamp_epoch_learned``; the clock and the held stamps start over,
+as for a rebase), before anything can have flown on it.
 """
 
 from __future__ import annotations
@@ -38,10 +54,16 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 
+from companion.mavlink.boot_time import BOOT_MS_PERIOD_S, unwrap_boot_s
+
 __all__ = ["StampGate", "Admitted", "UNIX_EPOCH_MIN_S"]
 
 UNIX_EPOCH_MIN_S = 1.0e9
 """stamps at or above this many seconds are UNIX time (2001-09-09), not time since boot"""
+
+
+MAX_REBASE_CANDIDATES = 1000
+"""samples kept while judging a new base (the newest; bounds a flood)"""
 
 
 @dataclass(frozen=True)
@@ -71,35 +93,91 @@ class StampGate:
     """arrival of the newest believed stamp [wall s]"""
     consistent_wall: float = -math.inf
     """arrival of the latest sample consistent with the current base [wall s]"""
+    epoch_learn_s: float = 2.0
+    """wall seconds after the first stamp within which a ``time_usec`` stamp may still say which
+    wrap of ``time_boot_ms`` the vehicle is on (see the module's docstring)"""
     rebases: int = 0
+    wraps: int = 0
+    """wraps of ``time_boot_ms`` believed (the newest wrapping stamp's whole periods)"""
     _candidate: list[tuple[float, float]] = field(default_factory=list)
+    _first_wall: float = -math.inf
+    _epoch_known: bool = False
+    """a believed stamp of a field that does not wrap has fixed which wrap the vehicle is on"""
 
-    def admit(self, stamp_s: float, wall: float, rate: float = 1.0) -> Admitted | None:
+    def admit(self, stamp_s: float, wall: float, rate: float = 1.0, wraps: bool = False) -> Admitted | None:
         """Judge one sample's stamp (seconds as sent) that arrived at ``wall``; ``rate`` is the
-        clock's fitted vehicle seconds per wall second. None: refuse the sample."""
+        clock's fitted vehicle seconds per wall second; ``wraps``: the stamp may be a
+        ``time_boot_ms`` (seconds modulo 2^32 ms), unwrapped here (one of a period or more has not
+        wrapped). None: refuse the sample."""
         if not math.isfinite(stamp_s) or stamp_s < 0.0:
             self.counts["stamp_invalid"] += 1
             return None
+        if wraps and stamp_s < BOOT_MS_PERIOD_S:
+            return self._admit_wrapping(stamp_s, wall, rate)
         if stamp_s >= UNIX_EPOCH_MIN_S:
             self.counts["stamp_unix_time"] += 1
             if not math.isfinite(self.newest_s):
                 return None  # nothing to place it at yet
             return Admitted(self.newest_s, False)
+        if self._learns_epoch(stamp_s, wall, rate):
+            return Admitted(stamp_s, True)
+        admitted = self._judge(stamp_s, stamp_s, wall, rate, wraps=False)
+        if admitted is not None:
+            self._epoch_known = True
+        return admitted
+
+    def _admit_wrapping(self, raw_s: float, wall: float, rate: float) -> Admitted | None:
+        """A ``time_boot_ms`` stamp: unwrapped about the newest believed stamp, then judged. A
+        change of base starts from the raw value (a vehicle that restarted is up for less than a wrap)."""
+        stamp_s = unwrap_boot_s(raw_s, self.newest_s) if math.isfinite(self.newest_s) else raw_s
+        admitted = self._judge(stamp_s, raw_s, wall, rate, wraps=True)
+        if admitted is not None:
+            wraps = round((admitted.t_s - raw_s) / BOOT_MS_PERIOD_S)
+            if wraps > self.wraps:
+                self.counts["stamp_wrapped"] += wraps - self.wraps
+                self.wraps = wraps
+        return admitted
+
+    def _allowed_ahead(self, wall: float, rate: float) -> float:
+        """How far past the newest believed stamp the vehicle can have lived by ``wall`` [vehicle s]."""
+        return max(self.max_rate * max(rate, 1.0) * max(wall - self.newest_wall, 0.0), 0.0) + self.slack_s
+
+    def _judge(self, stamp_s: float, rebase_s: float, wall: float, rate: float, wraps: bool) -> Admitted | None:
+        """The rules of the module's docstring for one (unwrapped) stamp; ``rebase_s``: the value a
+        change of base would start from."""
         if not math.isfinite(self.newest_s):
+            self._first_wall = wall
             self._accept(stamp_s, wall)
             return Admitted(stamp_s, True)
         ahead = stamp_s - self.newest_s
-        allowed = max(self.max_rate * max(rate, 1.0) * max(wall - self.newest_wall, 0.0), 0.0) + self.slack_s
-        if -self.back_window_s <= ahead <= allowed:
+        if -self.back_window_s <= ahead <= self._allowed_ahead(wall, rate):
             if ahead > 0.0:
                 self._accept(stamp_s, wall)
             self.consistent_wall = max(self.consistent_wall, wall)
             self._candidate.clear()
             return Admitted(stamp_s, True)
         self.counts["stamp_jump_forward" if ahead > 0.0 else "stamp_backwards"] += 1
-        if self._consider_rebase(stamp_s, wall, rate):
-            return Admitted(stamp_s, True)
+        if self._consider_rebase(rebase_s, wall, rate):
+            self.wraps, self._epoch_known, self._first_wall = 0, not wraps, wall
+            return Admitted(rebase_s, True)
         return None
+
+    def _learns_epoch(self, stamp_s: float, wall: float, rate: float) -> bool:
+        """A ``time_usec`` stamp whole wraps ahead of the ``time_boot_ms`` stamps believed so far,
+        early in the link: the vehicle has been up that long. The base moves there once."""
+        if self._epoch_known or not math.isfinite(self.newest_s) or wall - self._first_wall > self.epoch_learn_s:
+            return False
+        ahead = stamp_s - self.newest_s
+        k = round(ahead / BOOT_MS_PERIOD_S)
+        if k < 1 or not -self.back_window_s <= ahead - k * BOOT_MS_PERIOD_S <= self._allowed_ahead(wall, rate):
+            return False
+        self.counts["stamp_epoch_learned"] += 1
+        self.rebases += 1
+        self.wraps += k
+        self._epoch_known = True
+        self._candidate.clear()
+        self._accept(stamp_s, wall)
+        return True
 
     def _accept(self, stamp_s: float, wall: float) -> None:
         self.newest_s, self.newest_wall = stamp_s, wall
@@ -113,7 +191,10 @@ class StampGate:
             if not (-1e-9 <= step <= self.max_rate * max(rate, 1.0) * max(dwall, 0.0) + self.slack_s):
                 c.clear()  # not a consistent new base: start over from this sample
         c.append((stamp_s, wall))
-        if len(c) > self.rebase_samples:
+        # the newest samples that are both enough and span enough wall time (several streams
+        # interleave: 20 samples of attitude, position and IMU span only ~0.08 s)
+        while len(c) > self.rebase_samples and (c[-1][1] - c[1][1] >= self.rebase_span_s
+                                                or len(c) > MAX_REBASE_CANDIDATES):
             del c[0]
         if (len(c) >= self.rebase_samples and c[-1][1] - c[0][1] >= self.rebase_span_s
                 and wall - self.consistent_wall >= self.rebase_silence_s):

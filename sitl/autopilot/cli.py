@@ -152,7 +152,7 @@ def build(args: argparse.Namespace) -> MavlinkServer:
     cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
                        origin=args.origin, signing_key=signing_key(args, "sitl"),
                        wait_for_setpoints_s=args.wait_for_setpoints, lockstep_period_s=args.lockstep * 1e-3,
-                       max_wait_wall_s=3.0 if args.lockstep else 1.0)
+                       max_wait_wall_s=3.0 if args.lockstep else 1.0, boot_time_s=args.boot_time)
     server = MavlinkServer(ap, cfg)
     bad = out_of_range(server.params)
     if bad:  # the scenario set what no PARAM_SET may

@@ -130,6 +130,9 @@ class ServerConfig:
     upper bound; a stream gone for ``max_wait_wall_s`` (awake) hands time back to the failsafes."""
     signing_key: bytes | None = None
     """MAVLink 2 signing: sign everything sent, and act only on frames signed with this key"""
+    boot_time_s: float = 0.0
+    """how long the vehicle had been up when the simulation started [s]: every stamp sent starts
+    there (``time_boot_ms`` wraps 2^32 ms after boot, 49.7 days; ``time_usec`` runs on)"""
 
 
 FORWARDED = frozenset({"NAMED_VALUE_FLOAT", "NAMED_VALUE_INT", "DEBUG_VECT", "DEBUG"})
@@ -148,7 +151,7 @@ class MavlinkServer:
         self.mav = mavlink.MAVLink(None, srcSystem=cfg.sysid, srcComponent=cfg.compid)
         self.parser = new_parser()
         autopilot = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA if ap.ardupilot else mavlink.MAV_AUTOPILOT_PX4
-        self.telemetry = Telemetry(ap, self.mav, cfg.origin, autopilot)
+        self.telemetry = Telemetry(ap, self.mav, cfg.origin, autopilot, int(round(cfg.boot_time_s * 1000.0)))
         self.params: ParamTable = build_parameters(ap)
         self.guard = StepGuard(ap)
         """steps the autopilot: a numerical fault or a loss of control ends in a defined failsafe"""
@@ -572,13 +575,14 @@ class MavlinkServer:
         """The companion stamps a setpoint with the vehicle time of the telemetry it was computed
         from: its age here is the whole loop's latency (PX4 ignores the field; 0 = unstamped), and
         what ``wait_for_setpoints_s`` measures (from arrival when unstamped)."""
-        age = self.ap.t - time_boot_ms * 1e-3
+        stamp_t = self.telemetry.sim_time_of(time_boot_ms)
+        age = self.ap.t - stamp_t
         if self._source is not None:
             self.peers.controller = self._source  # protected from eviction and from the flood budget
         if time_boot_ms and 0.0 <= age < 60.0:
             self.setpoint_age_s.append(age)
             self.setpoint_age_max_s = max(self.setpoint_age_max_s, age)
-            self._acted_on_t = time_boot_ms * 1e-3
+            self._acted_on_t = stamp_t
         else:
             self._acted_on_t = self.ap.t
         self._setpoint_arrived.set()
@@ -705,7 +709,7 @@ class MavlinkServer:
         """A request (tc1 = 0) is answered with our simulated time in tc1 and the request's ts1, to the
         requester (this dialect's TIMESYNC has no target fields)."""
         if msg.tc1 == 0:
-            self.reply(self.mav.timesync_encode(int(self.ap.t * 1e9), msg.ts1))
+            self.reply(self.mav.timesync_encode(self.telemetry.time_usec * 1000, msg.ts1))
 
     def _request_data_stream(self, msg: Any) -> None:
         """Start (the default rates) or stop (all but HEARTBEAT) the requester's streams."""

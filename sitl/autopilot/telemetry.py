@@ -15,6 +15,7 @@ from typing import Callable
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
+from companion.mavlink.boot_time import BOOT_MS_MODULUS, unwrap_boot_s
 
 from ..plant.geo import GeoOrigin
 from .logic import Autopilot, custom_mode
@@ -70,8 +71,12 @@ def _f(x: object) -> float:
 class Telemetry:
     """Builds messages from an :class:`Autopilot`; ``encoders`` maps message id to builder."""
 
-    def __init__(self, ap: Autopilot, mav: mavlink.MAVLink, origin: GeoOrigin, autopilot_type: int) -> None:
+    def __init__(self, ap: Autopilot, mav: mavlink.MAVLink, origin: GeoOrigin, autopilot_type: int,
+                 boot_offset_ms: int = 0) -> None:
         self.ap = ap
+        self.boot_offset_ms = boot_offset_ms
+        """milliseconds the vehicle had been up when the simulation started (``sitl --boot-time``):
+        added to every stamp sent, so a flight can cross the wrap of ``time_boot_ms``"""
         self.mav = mav
         self.origin = origin
         self.autopilot_type = autopilot_type
@@ -96,11 +101,17 @@ class Telemetry:
 
     @property
     def time_boot_ms(self) -> int:
-        return int(round(self.ap.t * 1000.0)) & 0xFFFFFFFF  # round: t is a sum of 1 ms steps
+        return (self.boot_offset_ms + int(round(self.ap.t * 1000.0))) % BOOT_MS_MODULUS  # t: a sum of 1 ms steps
 
     @property
     def time_usec(self) -> int:
-        return int(round(self.ap.t * 1e6))
+        return self.boot_offset_ms * 1000 + int(round(self.ap.t * 1e6))
+
+    def sim_time_of(self, time_boot_ms: int) -> float:
+        """The simulation time [s, as ``ap.t``] a ``time_boot_ms`` stamp received now stands for:
+        unwrapped about the vehicle's own uptime, so a stamp from before a wrap stays before it."""
+        since_start_ms = (time_boot_ms - self.boot_offset_ms) % BOOT_MS_MODULUS
+        return unwrap_boot_s(since_start_ms * 1e-3, self.ap.t)
 
     # --- messages --------------------------------------------------------------------------
 

@@ -272,3 +272,6 @@ PAPER = ("--flavour", "paper")
 """the bundled vehicle with the paper's inner loop (attitude and body rates flown together)"""
 PAPER_OUTPUT = ("--output", "attitude_rates")
 """the companion's setpoints for that inner loop: attitude, body rates and thrust"""
+POSITION_WAIT = ("--position-wait", "60")
+"""the companion waits for the position of a vehicle with the ardupilot flavour, which has none
+for its first 40 simulated seconds (ArduCopter's EKF origin): 20 s of wall time at 2x"""

@@ -28,7 +28,7 @@ waits (its clock stopped) for a companion this busy host stalls, rather than fly
 without it (sitl --help)"""
 # flights whose subject is control: lockstep (a busy host makes them slower, never different), the
 # paper's inner loop and the setpoints it takes (tests/helpers/processes.py)
-from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT  # noqa: E402
+from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT, POSITION_WAIT  # noqa: E402
 
 
 def segments(flight) -> dict:
@@ -230,7 +230,7 @@ def test_ardupilot_flavour_guided_throttle_and_parameters_put_back(sitl, compani
     before = {name: gcs.param(name) for name in ("GUID_OPTIONS", "GUID_TIMEOUT", "ATC_RATE_FF_ENAB",
                                                  "ATC_ANGLE_BOOST", "ATC_ANGLE_MAX")}
     assert before["ATC_RATE_FF_ENAB"] == 1 and before["ATC_ANGLE_BOOST"] == 1  # ArduPilot's defaults
-    c = companion("missions/hover45.toml", s.url)
+    c = companion("missions/hover45.toml", s.url, *POSITION_WAIT)
     code, out = c.finish()
     assert code == 0, out
     assert "GUID_OPTIONS 0 -> 8" in out and "GUID_TIMEOUT 3 -> 0.5" in out and "MOT_THST_HOVER" in out
@@ -250,7 +250,7 @@ def test_ardupilot_dead_companion_the_vehicle_levels_after_guid_timeout(sitl, co
     its flight and sends no body rates to ArduPilot (type_mask 7), so the last target is a level-ish
     hover attitude that is not turned on; killed, it cannot put GUID_TIMEOUT back (docs/companion.md)."""
     s = sitl("--flavour", "ardupilot", *WAIT, speedup=SPEEDUP)
-    c = companion("missions/hover45.toml", s.url)
+    c = companion("missions/hover45.toml", s.url, *POSITION_WAIT)
     c.wait_for("step hover")
     c.proc.kill()
     obs = client(s.url, source_system=200)

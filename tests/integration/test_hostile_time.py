@@ -25,6 +25,8 @@ import pytest
 from helpers.mitm import Mitm
 from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT
 
+from companion.mavlink.boot_time import BOOT_MS_PERIOD_S
+
 pytestmark = pytest.mark.integration
 
 def _attacks(mitm: Mitm) -> dict[str, int]:
@@ -71,4 +73,54 @@ def test_no_timestamp_moves_or_stalls_the_companion_clock(sitl, companion):
     assert stats.get("stamp_jump_forward", 0) >= sent["jump_forward"], stats
     assert stats.get("stamp_backwards", 0) >= sent["backwards"], stats
     assert data["older_samples"] >= sent["repeat"], data
+    assert data["controller_time"]["dropped_s"] == 0.0, data["controller_time"]
+
+
+WRAP_AFTER_S = 40.0
+"""simulated seconds from the vehicle's start to the wrap of its time_boot_ms: the 40 s hold
+starts 15-20 s after start here (connection, take-off and offboard at up to 8x), so the wrap falls
+inside it even if connecting took another 2.5 s of wall time"""
+
+HOLD_ACROSS_THE_WRAP = """name = "hold_wrap"
+[controller]
+position = "ism_do"
+rate_hz = 100
+[safety.volume]
+max_distance_m = 10.0
+max_altitude_m = 6.0
+[[steps]]
+action = "takeoff"
+altitude_m = 1.5
+[[steps]]
+action = "offboard"
+[[steps]]
+name = "hold"
+action = "hold"
+duration_s = 40.0
+position_ned_m = [0.0, 0.0, -1.5]
+[[steps]]
+action = "land"
+"""
+
+
+def test_a_vehicle_up_49_7_days_wraps_time_boot_ms_mid_hover_and_the_mission_completes(sitl, companion, tmp_path):
+    """``sitl --boot-time`` starts the vehicle 40 s before its time_boot_ms wraps (its time_usec
+    runs on). In lockstep the hold crosses the wrap and must not notice: it completes, lasts its 40
+    vehicle seconds, holds to the clean hold's bounds, and nothing was refused. Before the wrap was
+    told from a jump, every attitude and position after it was refused as going backwards (the
+    IMU's time_usec kept the old base alive, so it was never rebased) and the hold timed out."""
+    mission = tmp_path / "hold_wrap.toml"
+    mission.write_text(HOLD_ACROSS_THE_WRAP)
+    s = sitl(*PAPER, *LOCKSTEP, "--boot-time", f"{BOOT_MS_PERIOD_S - WRAP_AFTER_S:.3f}", speedup=LOCKSTEP_SPEEDUP)
+    c = companion(str(mission), s.url, *PAPER_OUTPUT)
+    code, out = c.finish(timeout=240)
+    assert code == 0, out
+    data = json.loads((c.flight_dir() / "segments.json").read_text())
+    hold = next(x for x in data["segments"] if x["name"] == "hold")
+    assert hold["t_start"] < BOOT_MS_PERIOD_S < hold["t_end"], hold  # the wrap fell inside the hold
+    assert abs((hold["t_end"] - hold["t_start"]) - 40.0) < 0.5, hold
+    assert hold["rms_error_m"] < 0.05 and hold["peak_error_m"] < 0.15, hold
+    stats = data["link_stats"]
+    assert stats.get("stamp_wrapped") == 1, stats
+    assert not any(stats.get(k) for k in ("stamp_backwards", "stamp_jump_forward", "stamp_rebased")), stats
     assert data["controller_time"]["dropped_s"] == 0.0, data["controller_time"]

@@ -11,7 +11,7 @@ import time
 import pytest
 from pymavlink import mavutil
 
-from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT, RelayProcess
+from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT, POSITION_WAIT, RelayProcess
 
 from .test_companion_e2e import segments
 from .test_sitl_pymavlink import take_off
@@ -51,7 +51,7 @@ def test_parameters_are_put_back_after_ctrl_c_and_after_a_gcs_takes_control(sitl
     gcs = client(s.url, source_system=200)
     gcs.wait("HEARTBEAT")
     assert ardupilot_params(gcs) == ARDUPILOT_DEFAULTS
-    c = companion("missions/hold.toml", s.url)
+    c = companion("missions/hold.toml", s.url, *POSITION_WAIT)
     c.wait_for("step hold", timeout=120)
     c.proc.send_signal(signal.SIGINT)
     code, out = c.finish(timeout=120)
@@ -73,7 +73,7 @@ def test_after_a_lost_link_the_parameters_not_put_back_are_listed(sitl, companio
     s = sitl("--flavour", "ardupilot", "--wait-for-setpoints", "0.05", speedup=2.0)
     r = RelayProcess(s.url)
     try:
-        c = companion("missions/hold.toml", r.url)
+        c = companion("missions/hold.toml", r.url, *POSITION_WAIT)
         c.wait_for("step hold", timeout=120)
         r.proc.send_signal(signal.SIGSTOP)  # the link goes down for good
         code, out = c.finish(timeout=120)

@@ -255,3 +255,24 @@ def test_ardupilot_reports_a_stale_hover_throttle_that_it_learns_in_flight():
     run(ap, 10.0)
     assert ap.reported_hover_throttle() / true - 1 == pytest.approx(-0.05 * math.exp(-(flown + 10.0) / 10.0), rel=1e-3)
     assert make(flavour="px4").reported_hover_throttle() == true
+
+
+def test_boot_time_offsets_every_stamp_and_the_stamps_a_companion_sends_back_unwrap_across_the_wrap():
+    """``sitl --boot-time``: 10 ms before time_boot_ms wraps, then 20 ms later. The stamps sent carry
+    the offset (time_boot_ms wrapped, time_usec not); a setpoint stamped before the wrap and read
+    after it is 20 ms old, not 49.7 days in the future."""
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    from companion.mavlink.boot_time import BOOT_MS_MODULUS
+    from sitl.autopilot.telemetry import GeoOrigin, Telemetry
+
+    ap = make()
+    offset_ms = BOOT_MS_MODULUS - 10 - round(ap.t * 1000)
+    tel = Telemetry(ap, mavlink.MAVLink(None), GeoOrigin(), mavlink.MAV_AUTOPILOT_PX4, offset_ms)
+    before, t_before = tel.time_boot_ms, ap.t
+    assert before == BOOT_MS_MODULUS - 10 and tel.time_usec == (BOOT_MS_MODULUS - 10) * 1000
+    run(ap, 0.02)
+    assert tel.time_boot_ms == 10 and tel.time_usec == (BOOT_MS_MODULUS + 10) * 1000
+    assert math.isclose(ap.t - tel.sim_time_of(before), 0.02, abs_tol=1e-9)
+    assert math.isclose(tel.sim_time_of(before), t_before, abs_tol=1e-9)
+    assert math.isclose(tel.sim_time_of(tel.time_boot_ms), ap.t, abs_tol=1e-9)

@@ -48,6 +48,9 @@ def run(capsys, *args: str) -> tuple[int, list[str]]:  # type: ignore[no-untyped
     (("--scenario", "no_such_scenario"), "no_such_scenario: cannot read file"),
     (("--duration", "-1"), "--duration must be positive"),
     (("--wait-for-setpoints", "nan"), "--wait-for-setpoints"),
+    (("--boot-time", "-1"), "--boot-time must be within 0..1e8 s"),
+    (("--boot-time", "2e9"), "--boot-time must be within 0..1e8 s"),
+    (("--boot-time", "nan"), "--boot-time: expected a finite number"),
 ])
 def test_each_bad_argument_is_one_line_and_exit_status_2(capsys, args, says) -> None:  # type: ignore[no-untyped-def]
     code, err = run(capsys, *args)
@@ -78,7 +81,7 @@ def test_good_arguments_start_the_vehicle(capsys) -> None:  # type: ignore[no-un
 
 
 OPTIONS = ("--origin", "--sysid", "--seed", "--speedup", "--listen", "--param", "--scenario",
-           "--wait-for-setpoints", "--lockstep", "--attitude", "--flavour", "--peer")
+           "--wait-for-setpoints", "--lockstep", "--attitude", "--flavour", "--peer", "--boot-time")
 """(not --duration: a valid long one would run; its checks are above)"""
 VALUES = st.one_of(
     st.text(max_size=30),
@@ -121,6 +124,7 @@ def run_firmware(capsys, *args: str) -> tuple[int, list[str]]:  # type: ignore[n
     (("--firmware", "px4", "--attitude", "pd"), "--attitude is the bundled autopilot's"),
     (("--firmware", "px4", "--listen", "127.0.0.1:15000"), "--listen is the bundled autopilot's"),
     (("--firmware", "gazebo"), "invalid choice"),
+    (("--firmware", "px4", "--boot-time", "100"), "--boot-time is the bundled autopilot's"),
     (("--layout", "x"), "--layout needs --firmware"),
     (("--position-source", "gnss"), "--position-source needs --firmware"),
 ])
