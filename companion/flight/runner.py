@@ -40,7 +40,7 @@ from .health import HealthMonitor
 from .offboard import OffboardController, PositionTarget, Setpoint, Tick
 from .output import choose_output
 from .pacing import TickGrid
-from .prepare import ParamChanges, prepare_ardupilot, thrust_scale
+from .prepare import RESTORE_WITHIN_S, ParamChanges, prepare_ardupilot, thrust_scale
 from .recorder import FlightRecorder, strict_json
 from .silence import AwakeSilence
 from .steps import run_step
@@ -205,8 +205,8 @@ class Flight:
                     result, message = "link lost", str(eg.exceptions[0])
                 except* LinkError as eg:
                     result, message = "aborted", str(eg.exceptions[0])
-                if self.params.originals:  # the mission ended before it could put them back
-                    await self._restore_params()
+                if self.params.pending:  # the mission ended before it could put them back (a lost link)
+                    await self._restore_with_reader()
         except LinkError as exc:  # opening the link: the port is taken, the device missing; nothing flew
             result, message = "aborted", str(exc)
         finally:
@@ -222,7 +222,24 @@ class Flight:
 
     async def _restore_params(self) -> None:
         with contextlib.suppress(Exception):
-            await asyncio.wait_for(self.params.restore(), 10.0)
+            await asyncio.wait_for(self.params.restore(RESTORE_WITHIN_S), RESTORE_WITHIN_S + 5.0)
+        self.params.give_up()
+
+    async def _restore_with_reader(self) -> None:
+        """Put the parameters back after the flight's tasks ended (the link was lost): the answers
+        need a reader, and a link that comes back within RESTORE_WITHIN_S gets them back."""
+        stop = asyncio.Event()
+
+        async def restore_then_stop() -> None:
+            try:
+                await self._restore_params()
+            finally:
+                stop.set()
+
+        with contextlib.suppress(Exception):
+            async with asyncio.TaskGroup() as tg:
+                tg.create_task(self.link.run(stop))
+                tg.create_task(restore_then_stop())
         self.params.give_up()
 
     def _in_background(self, command: Awaitable[None]) -> None:
@@ -616,6 +633,7 @@ class Flight:
                       "p99_abs_jitter_ms": 1000 * sorted(abs(p - med) for p in periods)[int(0.99 * len(periods))]}
         ct = self.control.time if self.control else None
         w = self.watch
+        params = self.params.record.summary()
         return {
             "mission": self.mission.name, "result": result, "message": message,
             "controller": self.controller_name, "rate_hz": self.rate_hz, "backend": self.opt.backend,
@@ -637,7 +655,8 @@ class Flight:
             "older_samples": self.link.state.older_samples,
             "acceleration_source": self.control.acceleration_source if self.control else None,
             "skipped_steps": list(self.skipped),
-            "params_not_restored": dict(self.params.not_restored),
+            "params_not_restored": params["not_restored"], "params_restored": params["restored"],
+            "params_kept": params["kept"],
             "record": "complete" if self.recorder.failed is None else f"stopped: {self.recorder.failed}",
             "signing": fingerprint(self.opt.signing_key) if self.opt.signing_key else "off",
             "signing_rejections": dict(getattr(self.link, "signing_rejections", {})),

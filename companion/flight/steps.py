@@ -11,11 +11,12 @@ import math
 from collections.abc import Awaitable, Callable
 from typing import Protocol
 
-from companion.link import VehicleLink
+from companion.link import LinkError, VehicleLink
 from companion.mission import Step
 
 from .errors import MissionAbort
 from .offboard import OffboardController
+from .prepare import ParamChanges
 
 __all__ = ["Flight", "STEPS", "run_step"]
 
@@ -27,6 +28,7 @@ class Flight(Protocol):
     engaged: bool
     expect_offboard: bool
     skipped: list[str]
+    params: ParamChanges
 
     @property
     def controller(self) -> OffboardController: ...
@@ -41,6 +43,9 @@ class Flight(Protocol):
     async def arm(self, timeout_s: float) -> None: ...
 
 TAKEOFF_TOLERANCE_M = 0.15
+TAKEOFF_ALT_PARAM = "MIS_TAKEOFF_ALT"
+"""PX4's take-off altitude above home [m]; the link's take-off also writes it (MAVSDK does, inside
+``set_takeoff_altitude``), so the step records it first and the link's write changes nothing more"""
 
 
 async def takeoff(f: Flight, s: Step) -> None:
@@ -50,6 +55,8 @@ async def takeoff(f: Flight, s: Step) -> None:
     if not st.armed:
         await f.arm(s.timeout_s)
     ground = st.pos_ned_m[2]
+    if st.autopilot == "px4":  # PX4 takes the altitude from MIS_TAKEOFF_ALT: written, then put back
+        await f.params.set(TAKEOFF_ALT_PARAM, s.altitude_m, "take-off altitude")
     await f.link.takeoff(s.altitude_m)
     target = ground - s.altitude_m
     await f.until(lambda: abs(st.pos_ned_m[2] - target) < TAKEOFF_TOLERANCE_M and st.mode != "TAKEOFF",
@@ -91,14 +98,17 @@ async def goto(f: Flight, s: Step) -> None:
 
 
 async def set_param(f: Flight, s: Step) -> None:
-    link = f.link
-    if s.sim_only and await link.get_param(s.param) is None:
-        f.skipped.append(f"{s.name}: {s.param} (no such parameter on this vehicle)")
-        f.log(f"{s.param}: no such parameter on this vehicle: step {s.name!r} SKIPPED")
+    """Through the flight's parameter record: put back when the flight ends unless ``keep``."""
+    try:
+        found = await f.params.set(s.param, s.value, f"step {s.name}", keep=s.keep)
+    except LinkError as exc:
+        raise MissionAbort(str(exc)) from None
+    if found:
         return
-    echoed = await link.set_param(s.param, s.value)
-    if abs(echoed - s.value) > 1e-6 * max(1.0, abs(s.value)):
-        raise MissionAbort(f"{s.param} = {s.value:g} refused (vehicle keeps {echoed:g})")
+    if not s.sim_only:
+        raise MissionAbort(f"{s.param}: the autopilot has no such parameter")
+    f.skipped.append(f"{s.name}: {s.param} (no such parameter on this vehicle)")
+    f.log(f"{s.param}: no such parameter on this vehicle: step {s.name!r} SKIPPED")
 
 
 async def wait(f: Flight, s: Step) -> None:
