@@ -30,6 +30,7 @@ from pathlib import Path
 from companion.control.params import PositionGains
 from companion.control.vector import clip_norm
 from companion.link import LinkError, VehicleLink, open_link
+from companion.link.state import LANDED_IN_AIR
 from companion.mavlink.signing import fingerprint
 from companion.mission import Mission
 
@@ -581,19 +582,30 @@ class Flight:
     async def _check_not_someone_elses(self) -> None:
         """An armed or flying vehicle is someone's: the companion does not take it without being told."""
         st = self.link.state
-        flying = st.armed or st.landed_state == 2  # MAV_LANDED_STATE_IN_AIR
+        flying = st.armed or st.landed_state == LANDED_IN_AIR
         if flying and not self.opt.take_over:
             raise MissionAbort(f"the vehicle is already {'armed' if st.armed else 'flying'} (mode {st.mode}): "
                                "another operator may be flying it. To fly it from where it is, start again with "
                                "--take-over")
         if flying:
-            self.taking_over = self.ours = True
+            why = self.take_over_refusal()
+            if why is not None:
+                raise MissionAbort(f"not taken over: {why}")
+            self.taking_over = True  # ours only once the autopilot accepts the switch (steps.offboard)
             self.log(f"taking over an armed vehicle in {st.mode}: its take-off steps are skipped")
         volume = getattr(self.mission.safety, "volume", None)
         where = volume.breach(st.pos_ned_m) if volume is not None else None
         if where is not None and not flying:
             raise MissionAbort(f"the vehicle is outside its safety volume before take-off ({where}): the "
                                "autopilot's local origin is not where it stands (moved after boot?)")
+
+    def take_over_refusal(self) -> str | None:
+        """Why ``--take-over`` must leave this vehicle alone now (supervisor.take_over_refusal)."""
+        st = self.link.state
+        return supervisor.take_over_refusal(supervisor.TakeOverView(
+            armed=st.armed, in_air=st.landed_state == LANDED_IN_AIR, on_ground=st.on_ground,
+            landed_known=st.landed_state != 0, mode=st.mode, autopilot=st.autopilot, failsafe=st.failsafe,
+            has_navigation=st.has_navigation, vel_ned_m_s=st.vel_ned_m_s))
 
     async def _preflight(self) -> dict:
         """Read the autopilot's failsafe settings and print them, with warnings (preflight.py)."""

@@ -29,6 +29,10 @@ class Flight(Protocol):
     expect_offboard: bool
     skipped: list[str]
     params: ParamChanges
+    taking_over: bool
+    """``--take-over`` of a vehicle found armed or flying"""
+    ours: bool
+    """the companion answers for the vehicle (it armed it, or the autopilot accepted our take-over)"""
 
     @property
     def controller(self) -> OffboardController: ...
@@ -41,6 +45,8 @@ class Flight(Protocol):
     async def sleep_v(self, seconds: float) -> None: ...
 
     async def arm(self, timeout_s: float) -> None: ...
+
+    def take_over_refusal(self) -> str | None: ...
 
 TAKEOFF_TOLERANCE_M = 0.15
 TAKEOFF_ALT_PARAM = "MIS_TAKEOFF_ALT"
@@ -72,8 +78,13 @@ async def offboard(f: Flight, s: Step) -> None:
     c.start(st)
     f.engaged = True
     await f.sleep_v(1.2)
+    if f.taking_over:  # checked again right before the switch: a failsafe may have begun meanwhile
+        why = f.take_over_refusal()
+        if why is not None:
+            raise MissionAbort(f"not taken over: {why}")
     c.start(st)
     await f.link.start_offboard()
+    f.ours = True
     await f.until(lambda: st.offboard, s.timeout_s, "offboard mode")
     f.expect_offboard = True
 
