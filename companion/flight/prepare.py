@@ -1,42 +1,69 @@
 """Before the mission flies: the thrust scale, and the autopilot parameters the flight needs.
 
-Every parameter the companion changes is changed through :class:`ParamChanges`, which remembers
-the value it found and puts it back when the flight ends — completed, interrupted, aborted or
-after a lost link (best effort then; what could not be put back is listed in the summary).
+Every parameter the companion changes — a preparation's, a mission step's, the take-off
+altitude — is changed through :class:`ParamChanges`, which records the value it found
+(:mod:`.param_record`) and puts it back when the flight ends: completed, interrupted (SIGINT,
+SIGTERM), aborted, or after a lost link (tried for RESTORE_WITHIN_S; what could not be put back
+is listed in the summary, as are those a step marked ``keep``).
 """
 
 from __future__ import annotations
 
-import math
+import asyncio
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from companion.link import LinkError, VehicleLink
 
-__all__ = ["ParamChanges", "thrust_scale"]
+from .param_record import ParamRecord, same_value
+
+__all__ = ["ParamChanges", "thrust_scale", "RESTORE_WITHIN_S"]
+
+RESTORE_WITHIN_S = 10.0
+"""wall seconds the companion keeps trying to put its parameters back when the flight ends (a lost
+link that comes back within them gets them back)"""
+RETRY_S = 0.5
+"""wall seconds between passes over the parameters not yet put back"""
 
 
 @dataclass
 class ParamChanges:
+    """Every parameter write of a flight, through one door: the value found is recorded
+    (:class:`~.param_record.ParamRecord`) before the write is sent, and :meth:`restore` puts back
+    what the record says."""
+
     link: VehicleLink
     log: Callable[[str], None]
-    originals: dict[str, float] = field(default_factory=dict)
-    """name -> the value the autopilot had before our first change"""
-    not_restored: dict[str, float] = field(default_factory=dict)
+    record: ParamRecord = field(default_factory=ParamRecord)
 
-    async def set(self, name: str, value: float, why: str) -> bool:
-        """Set ``name`` to ``value`` (remembering the original); False if the autopilot has no such
-        parameter. LinkError if it refuses the value."""
+    @property
+    def pending(self) -> bool:
+        """Some parameter still has to be put back."""
+        return self.record.pending
+
+    @property
+    def not_restored(self) -> dict[str, float]:
+        return self.record.summary()["not_restored"]
+
+    async def set(self, name: str, value: float, why: str, keep: bool = False) -> bool:
+        """Set ``name`` to ``value``; False if the autopilot has no such parameter. LinkError if it
+        refuses the value. ``keep``: the value stays after the flight (a mission step's ``keep``)."""
         have = await self.link.get_param(name)
         if have is None:
             return False
-        if math.isclose(have, value, rel_tol=1e-6, abs_tol=1e-9):
+        known = self.record.get(name) is not None
+        if same_value(have, value):
+            if known:  # written before in this flight: a keep moves what it is put back to
+                self.record = self.record.written(name, have, value, keep)
             return True
+        self.record = self.record.written(name, have, value, keep)
         echoed = await self.link.set_param(name, value)
-        self.originals.setdefault(name, have)
-        if not math.isclose(echoed, value, rel_tol=1e-6, abs_tol=1e-9):
+        if not same_value(echoed, value):
+            self.record = self.record.written(name, have, echoed, keep)
             raise LinkError(f"{name} = {value:g} refused (the autopilot keeps {echoed:g})")
-        self.log(f"{name} {have:g} -> {value:g} ({why}; put back when the flight ends)")
+        after = "kept after the flight" if keep else "put back when the flight ends"
+        self.log(f"{name} {have:g} -> {value:g} ({why}; {after})")
         return True
 
     async def set_bits(self, name: str, bits: int, why: str) -> bool:
@@ -46,29 +73,36 @@ class ParamChanges:
             return False
         return await self.set(name, float(int(have) | bits), why)
 
-    async def restore(self) -> dict[str, float]:
-        """Put back every changed parameter; returns those that could not be (name -> original).
-        Cancelled (a deadline), what was not yet put back stays in ``originals``: see :meth:`give_up`."""
-        for name, original in reversed(list(self.originals.items())):
-            try:
-                echoed = await self.link.set_param(name, original)
-                if math.isclose(echoed, original, rel_tol=1e-6, abs_tol=1e-9):
-                    self.log(f"{name} put back to {original:g}")
-                    del self.originals[name]
-                    continue
-            except LinkError:
-                pass
-            del self.originals[name]
-            self.not_restored[name] = original
-            self.log(f"{name} could NOT be put back to {original:g}: set it by hand")
-        return dict(self.not_restored)
+    async def restore(self, within_s: float = RESTORE_WITHIN_S) -> dict[str, float]:
+        """Put back every changed parameter, trying again every RETRY_S while the link does not
+        answer, for at most ``within_s`` wall seconds (a link that comes back in that time gets
+        them); returns those that could not be (name -> the value to set by hand). Cancelled,
+        what was not yet put back stays pending: see :meth:`give_up`."""
+        end = time.monotonic() + within_s
+        while self.record.pending:
+            for name, value in self.record.to_restore():
+                try:
+                    echoed = await self.link.set_param(name, value)
+                except LinkError:
+                    continue  # no answer: tried again on the next pass
+                if same_value(echoed, value):
+                    self.record = self.record.restored(name)
+                    self.log(f"{name} put back to {value:g}")
+                else:  # refused: asking again will not change the autopilot's mind
+                    self.record = self.record.not_restored(name)
+                    self.log(f"{name} could NOT be put back to {value:g} (the autopilot keeps {echoed:g}): "
+                             "set it by hand")
+            if not self.record.pending or time.monotonic() >= end:
+                break
+            await asyncio.sleep(RETRY_S)
+        self.give_up()
+        return self.not_restored
 
     def give_up(self) -> None:
-        """The link is gone: whatever was not put back is listed as such."""
-        for name, original in self.originals.items():
-            self.not_restored[name] = original
-            self.log(f"{name} could NOT be put back to {original:g}: set it by hand")
-        self.originals.clear()
+        """No more tries: whatever was not put back is listed as such."""
+        for name, value in self.record.to_restore():
+            self.log(f"{name} could NOT be put back to {value:g}: set it by hand")
+        self.record = self.record.give_up()
 
 
 async def thrust_scale(link: VehicleLink, weight_n: float, configured_n: float, hover_throttle: float

@@ -320,6 +320,8 @@ def summary_markdown(data: dict) -> str:
         f"{data.get('rate_hz', '')} Hz asked for), rejected by the guard: {data.get('setpoints_rejected', '')}",
         *([f"- skipped on this vehicle: {'; '.join(data['skipped_steps'])}"] if data.get("skipped_steps") else []),
         *([f"- parameters NOT put back: {data['params_not_restored']}"] if data.get("params_not_restored") else []),
+        *([f"- parameters put back: {data['params_restored']}"] if data.get("params_restored") else []),
+        *([f"- parameters kept (the mission's keep): {data['params_kept']}"] if data.get("params_kept") else []),
         "",
         "Times and durations are vehicle seconds (the autopilot's clock), not wall time.",
         "",

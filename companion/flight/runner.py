@@ -30,6 +30,7 @@ from pathlib import Path
 from companion.control.params import PositionGains
 from companion.control.vector import clip_norm
 from companion.link import LinkError, VehicleLink, open_link
+from companion.link.state import LANDED_IN_AIR
 from companion.mavlink.signing import fingerprint
 from companion.mission import Mission
 
@@ -40,7 +41,7 @@ from .health import HealthMonitor
 from .offboard import OffboardController, PositionTarget, Setpoint, Tick
 from .output import choose_output
 from .pacing import TickGrid
-from .prepare import ParamChanges, prepare_ardupilot, thrust_scale
+from .prepare import RESTORE_WITHIN_S, ParamChanges, prepare_ardupilot, thrust_scale
 from .recorder import FlightRecorder, strict_json
 from .silence import AwakeSilence
 from .steps import run_step
@@ -209,8 +210,8 @@ class Flight:
                     result, message = "link lost", str(eg.exceptions[0])
                 except* LinkError as eg:
                     result, message = "aborted", str(eg.exceptions[0])
-                if self.params.originals:  # the mission ended before it could put them back
-                    await self._restore_params()
+                if self.params.pending:  # the mission ended before it could put them back (a lost link)
+                    await self._restore_with_reader()
         except LinkError as exc:  # opening the link: the port is taken, the device missing; nothing flew
             result, message = "aborted", str(exc)
         finally:
@@ -226,7 +227,24 @@ class Flight:
 
     async def _restore_params(self) -> None:
         with contextlib.suppress(Exception):
-            await asyncio.wait_for(self.params.restore(), 10.0)
+            await asyncio.wait_for(self.params.restore(RESTORE_WITHIN_S), RESTORE_WITHIN_S + 5.0)
+        self.params.give_up()
+
+    async def _restore_with_reader(self) -> None:
+        """Put the parameters back after the flight's tasks ended (the link was lost): the answers
+        need a reader, and a link that comes back within RESTORE_WITHIN_S gets them back."""
+        stop = asyncio.Event()
+
+        async def restore_then_stop() -> None:
+            try:
+                await self._restore_params()
+            finally:
+                stop.set()
+
+        with contextlib.suppress(Exception):
+            async with asyncio.TaskGroup() as tg:
+                tg.create_task(self.link.run(stop))
+                tg.create_task(restore_then_stop())
         self.params.give_up()
 
     def _in_background(self, command: Awaitable[None]) -> None:
@@ -573,19 +591,30 @@ class Flight:
     async def _check_not_someone_elses(self) -> None:
         """An armed or flying vehicle is someone's: the companion does not take it without being told."""
         st = self.link.state
-        flying = st.armed or st.landed_state == 2  # MAV_LANDED_STATE_IN_AIR
+        flying = st.armed or st.landed_state == LANDED_IN_AIR
         if flying and not self.opt.take_over:
             raise MissionAbort(f"the vehicle is already {'armed' if st.armed else 'flying'} (mode {st.mode}): "
                                "another operator may be flying it. To fly it from where it is, start again with "
                                "--take-over")
         if flying:
-            self.taking_over = self.ours = True
+            why = self.take_over_refusal()
+            if why is not None:
+                raise MissionAbort(f"not taken over: {why}")
+            self.taking_over = True  # ours only once the autopilot accepts the switch (steps.offboard)
             self.log(f"taking over an armed vehicle in {st.mode}: its take-off steps are skipped")
         volume = getattr(self.mission.safety, "volume", None)
         where = volume.breach(st.pos_ned_m) if volume is not None else None
         if where is not None and not flying:
             raise MissionAbort(f"the vehicle is outside its safety volume before take-off ({where}): the "
                                "autopilot's local origin is not where it stands (moved after boot?)")
+
+    def take_over_refusal(self) -> str | None:
+        """Why ``--take-over`` must leave this vehicle alone now (supervisor.take_over_refusal)."""
+        st = self.link.state
+        return supervisor.take_over_refusal(supervisor.TakeOverView(
+            armed=st.armed, in_air=st.landed_state == LANDED_IN_AIR, on_ground=st.on_ground,
+            landed_known=st.landed_state != 0, mode=st.mode, autopilot=st.autopilot, failsafe=st.failsafe,
+            has_navigation=st.has_navigation, vel_ned_m_s=st.vel_ned_m_s))
 
     async def _preflight(self) -> dict:
         """Read the autopilot's failsafe settings and print them, with warnings (preflight.py)."""
@@ -625,6 +654,7 @@ class Flight:
                       "p99_abs_jitter_ms": 1000 * sorted(abs(p - med) for p in periods)[int(0.99 * len(periods))]}
         ct = self.control.time if self.control else None
         w = self.watch
+        params = self.params.record.summary()
         return {
             "mission": self.mission.name, "result": result, "message": message,
             "controller": self.controller_name, "rate_hz": self.rate_hz, "backend": self.opt.backend,
@@ -646,7 +676,8 @@ class Flight:
             "older_samples": self.link.state.older_samples,
             "acceleration_source": self.control.acceleration_source if self.control else None,
             "skipped_steps": list(self.skipped),
-            "params_not_restored": dict(self.params.not_restored),
+            "params_not_restored": params["not_restored"], "params_restored": params["restored"],
+            "params_kept": params["kept"],
             "record": "complete" if self.recorder.failed is None else f"stopped: {self.recorder.failed}",
             "signing": fingerprint(self.opt.signing_key) if self.opt.signing_key else "off",
             "signing_rejections": dict(getattr(self.link, "signing_rejections", {})),

@@ -11,11 +11,12 @@ import math
 from collections.abc import Awaitable, Callable
 from typing import Protocol
 
-from companion.link import VehicleLink
+from companion.link import LinkError, VehicleLink
 from companion.mission import Step
 
 from .errors import MissionAbort
 from .offboard import OffboardController
+from .prepare import ParamChanges
 
 __all__ = ["Flight", "STEPS", "run_step"]
 
@@ -27,6 +28,11 @@ class Flight(Protocol):
     engaged: bool
     expect_offboard: bool
     skipped: list[str]
+    params: ParamChanges
+    taking_over: bool
+    """``--take-over`` of a vehicle found armed or flying"""
+    ours: bool
+    """the companion answers for the vehicle (it armed it, or the autopilot accepted our take-over)"""
     sent: int
     """setpoints sent so far"""
 
@@ -46,7 +52,12 @@ class Flight(Protocol):
 
     async def arm(self, timeout_s: float) -> None: ...
 
+    def take_over_refusal(self) -> str | None: ...
+
 TAKEOFF_TOLERANCE_M = 0.15
+TAKEOFF_ALT_PARAM = "MIS_TAKEOFF_ALT"
+"""PX4's take-off altitude above home [m]; the link's take-off also writes it (MAVSDK does, inside
+``set_takeoff_altitude``), so the step records it first and the link's write changes nothing more"""
 
 
 async def takeoff(f: Flight, s: Step) -> None:
@@ -56,6 +67,8 @@ async def takeoff(f: Flight, s: Step) -> None:
     if not st.armed:
         await f.arm(s.timeout_s)
     ground = st.pos_ned_m[2]
+    if st.autopilot == "px4":  # PX4 takes the altitude from MIS_TAKEOFF_ALT: written, then put back
+        await f.params.set(TAKEOFF_ALT_PARAM, s.altitude_m, "take-off altitude")
     await f.link.takeoff(s.altitude_m)
     target = ground - s.altitude_m
     await f.until(lambda: abs(st.pos_ned_m[2] - target) < TAKEOFF_TOLERANCE_M and st.mode != "TAKEOFF",
@@ -90,11 +103,16 @@ async def offboard(f: Flight, s: Step) -> None:
         return f.sent - before >= PRE_STREAM_SETPOINTS and st.t - first_t >= PRE_STREAM_S
 
     await f.until(streamed, s.timeout_s, "a setpoint stream before the switch to offboard")
+    if f.taking_over:  # checked again right before the switch: a failsafe may have begun meanwhile
+        why = f.take_over_refusal()
+        if why is not None:
+            raise MissionAbort(f"not taken over: {why}")
     c.start(st)
     start = st.t
     while not st.offboard:
         asked = st.t
         await f.link.start_offboard()
+        f.ours = True
         remaining = s.timeout_s - (st.t - start)
         await f.until(lambda asked=asked: st.offboard or st.t - asked >= MODE_RETRY_S or st.t - start >= s.timeout_s,
                       max(remaining, 0.1), "offboard mode")
@@ -123,14 +141,17 @@ async def goto(f: Flight, s: Step) -> None:
 
 
 async def set_param(f: Flight, s: Step) -> None:
-    link = f.link
-    if s.sim_only and await link.get_param(s.param) is None:
-        f.skipped.append(f"{s.name}: {s.param} (no such parameter on this vehicle)")
-        f.log(f"{s.param}: no such parameter on this vehicle: step {s.name!r} SKIPPED")
+    """Through the flight's parameter record: put back when the flight ends unless ``keep``."""
+    try:
+        found = await f.params.set(s.param, s.value, f"step {s.name}", keep=s.keep)
+    except LinkError as exc:
+        raise MissionAbort(str(exc)) from None
+    if found:
         return
-    echoed = await link.set_param(s.param, s.value)
-    if abs(echoed - s.value) > 1e-6 * max(1.0, abs(s.value)):
-        raise MissionAbort(f"{s.param} = {s.value:g} refused (vehicle keeps {echoed:g})")
+    if not s.sim_only:
+        raise MissionAbort(f"{s.param}: the autopilot has no such parameter")
+    f.skipped.append(f"{s.name}: {s.param} (no such parameter on this vehicle)")
+    f.log(f"{s.param}: no such parameter on this vehicle: step {s.name!r} SKIPPED")
 
 
 async def wait(f: Flight, s: Step) -> None:

@@ -34,7 +34,8 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["Limits", "Watch", "Watchdog", "Verdict", "judge", "outage_recent", "StepWatch", "judge_wait",
-           "FAILSAFE_MODES", "recovery", "may_command_hold", "LANDING_MODES", "HOLDING_MODES"]
+           "FAILSAFE_MODES", "recovery", "may_command_hold", "LANDING_MODES", "HOLDING_MODES", "TakeOverView",
+           "take_over_refusal", "STABLE_SPEED_M_S", "STABLE_CLIMB_M_S"]
 
 
 @dataclass(frozen=True)
@@ -214,3 +215,60 @@ def may_command_hold(expect_offboard: bool, offboard: bool, mode_heard_since: bo
     before is as old as the outage, and the autopilot's offboard-loss failsafe may have started
     meanwhile unseen (a retry that got through as the link came back cancelled PX4's descent)."""
     return not expect_offboard or (offboard and mode_heard_since)
+
+
+STABLE_SPEED_M_S = 0.5
+"""horizontal speed above which a vehicle is not taken over: more than a hold's drift in a gust"""
+STABLE_CLIMB_M_S = 0.15
+"""vertical speed above which a vehicle is not taken over: below the slowest landing descent (the
+bundled vehicle's MPC_LAND_SPEED floor 0.2 m/s, PX4's MPC_LAND_CRWL 0.3 m/s), above a hold's
+altitude wander"""
+TAKING_OFF_MODES = frozenset({"TAKEOFF"})
+
+
+@dataclass(frozen=True)
+class TakeOverView:
+    """What ``--take-over`` sees of the vehicle before it streams or switches anything."""
+
+    armed: bool
+    in_air: bool
+    """the autopilot says it flies (MAV_LANDED_STATE_IN_AIR); a take-off or landing is not"""
+    on_ground: bool
+    """the autopilot says it is on the ground (MAV_LANDED_STATE_ON_GROUND)"""
+    landed_known: bool
+    """the autopilot reports its landed state at all (EXTENDED_SYS_STATE)"""
+    mode: str
+    autopilot: str
+    failsafe: bool
+    """the heartbeat's system status says a failsafe is active (MAV_STATE_CRITICAL or EMERGENCY)"""
+    has_navigation: bool
+    vel_ned_m_s: tuple[float, float, float]
+
+
+def take_over_refusal(v: TakeOverView) -> str | None:
+    """Why ``--take-over`` must not take this armed or flying vehicle, or None to take it. Taking
+    over switches the autopilot to the mode that flies our setpoints, which ends whatever it is
+    doing: an autopilot's failsafe in progress (PX4 v1.16's offboard-loss descent, a landing, a
+    return) is never fought, so only a vehicle in the air, holding still and in no failsafe or
+    landing mode is taken; one armed on the ground is not flown from there (its take-off steps
+    would be skipped and the controller would hold it on the ground)."""
+    if v.failsafe:
+        return f"the autopilot reports a failsafe in progress (mode {v.mode}): it is left to finish it"
+    if v.mode in LANDING_MODES or v.mode in FAILSAFE_MODES:
+        return f"the autopilot is in {v.mode} (a landing, a return or a failsafe): it is left to finish it"
+    if v.autopilot == "px4" and v.mode == "POSCTL":
+        return ("PX4 is in POSCTL: a pilot flies it, or its offboard-loss failsafe descends (v1.16 without RC "
+                "shows POSCTL): it is left as it is")
+    if v.mode in TAKING_OFF_MODES:
+        return f"the vehicle is taking off ({v.mode}): start again once it holds"
+    if v.on_ground or (v.armed and v.landed_known and not v.in_air):
+        where = "on the ground" if v.on_ground else "taking off or landing (MAV_LANDED_STATE)"
+        return f"the vehicle is armed {where}: only a vehicle in the air is taken over"
+    if not v.has_navigation:
+        return "no position from the vehicle: it cannot be taken over from where it is"
+    vn, ve, vd = v.vel_ned_m_s
+    speed = math.hypot(vn, ve)
+    if speed > STABLE_SPEED_M_S or abs(vd) > STABLE_CLIMB_M_S:
+        return (f"the vehicle is not holding still ({speed:.2f} m/s horizontally, {-vd:+.2f} m/s up; bounds "
+                f"{STABLE_SPEED_M_S:g} and {STABLE_CLIMB_M_S:g}): take it over once it holds")
+    return None

@@ -253,6 +253,7 @@ class PymavlinkLink(VehicleLink):
             st.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
             st.mode = flavour.mode_name(msg.custom_mode)
             st.offboard = st.mode in flavour.offboard_names
+            st.failsafe = msg.system_status in (mavlink.MAV_STATE_CRITICAL, mavlink.MAV_STATE_EMERGENCY)
             st.wall_heartbeat = wall
             st.wall_last = wall
             if not self._connected.is_set():

@@ -49,6 +49,9 @@ class VehicleState:
     """the autopilot is in the mode that flies our attitude setpoints"""
     landed_state: int = 0
     """MAV_LANDED_STATE from EXTENDED_SYS_STATE (0: the autopilot does not say)"""
+    failsafe: bool = False
+    """the heartbeat's system status is MAV_STATE_CRITICAL or EMERGENCY: PX4 and ArduPilot say so while
+    a failsafe is active"""
     armable: bool | None = None
     """the autopilot's pre-arm checks pass (SYS_STATUS pre-arm bit); None if it does not say"""
     wall_heartbeat: float = -math.inf

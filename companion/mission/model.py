@@ -28,7 +28,7 @@ ALLOWED = {
     "offboard": ("timeout_s",),
     "hold": ("duration_s", "position_ned_m", "yaw_deg"),
     "goto": ("waypoints", "speed_m_s", "tolerance_m", "hold_s", "timeout_s"),
-    "set_param": ("param", "value", "sim_only"),
+    "set_param": ("param", "value", "sim_only", "keep"),
     "wait": ("duration_s",),
     "land": ("timeout_s",),
 }
@@ -53,6 +53,8 @@ class Step:
     value: float = 0.0
     sim_only: bool = False
     """skip (with a warning) if the vehicle has no such parameter, e.g. a real vehicle"""
+    keep: bool = False
+    """leave the value set after the flight (by default every parameter the companion wrote is put back)"""
     timeout_s: float = 60.0
 
 
