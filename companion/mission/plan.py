@@ -28,10 +28,17 @@ frame <-> 10, refused), and ``Altitude`` with param 7 where the mode says they a
 Geofence: every circle and polygon becomes a fence of the mission's safety volume, inclusion or
 exclusion as flagged; with an inclusion fence the fence, not the default cylinder, bounds the
 horizontal extent (up to the envelope's 1000 m). The height limit is the default volume's.
+``geoFence.version`` 2 has ``circles`` and ``polygons``; version 1, QGroundControl's older fence,
+one ``polygon`` of corners, the area to stay inside (an inclusion polygon). The plan file's
+``version`` (1), ``mission.version`` (2) and ``geoFence.version`` are checked: any other is
+refused by name. A plan without mission items (a fence, rally points) is no mission on its own:
+a TOML mission with ``[[steps]]`` and ``plan = ...`` takes its fence.
 
 Errors name the file, the JSON line, the item path (``mission.items[3].params[6]``) and what was
-expected; checks after conversion (the volume, the envelope) are reported against the item that
-produced the offending step.
+expected, values spelt as JSON (``null``, ``true``); checks after conversion (the volume, the
+envelope) are reported against the item that produced the offending step. A plan flown alone
+that leaves the default volume's ceiling or distance gets, as the error's ``hint``, the TOML to
+write beside it (:func:`volume_hint`).
 
 :func:`load_plan` flies a plan with the default controller, failsafes and volume;
 :func:`import_plan` gives the converted steps and fences to a TOML mission that names the plan

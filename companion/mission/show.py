@@ -52,7 +52,7 @@ def _step_line(i: int, s: Step, m: Mission) -> list[str]:
 def steps_in_ned(m: Mission) -> list[str]:
     """One line per step (and per waypoint) with positions in metres north, east, down of home,
     then the fences' corners and centres in metres north, east of home."""
-    lines = ["  NED: metres north, east and down of home (where the vehicle arms); up is negative down"]
+    lines = ["  NED: metres north, east and down of home (where the vehicle arms): 10 m up is down -10"]
     for i, s in enumerate(m.steps):
         lines += _step_line(i, s, m)
     vol = m.safety.volume
