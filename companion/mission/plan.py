@@ -580,7 +580,7 @@ FENCE_VERSIONS = {1: "one polygon to stay inside, QGroundControl's older fence",
 def _version(obj: dict[str, Any], where: Path_, known: dict[int, str], what: str) -> int:
     """The object's ``version``, refused by name unless it is one of ``known``."""
     v = obj.get("version")
-    if isinstance(v, bool) or v not in known:
+    if not isinstance(v, int) or isinstance(v, bool) or v not in known:
         told = " or ".join(f"{k} ({name})" for k, name in known.items())
         raise _Refusal(where + ("version",), f"{what} version {_json(v)} is not one this reader knows: "
                        f"expected {told}")

@@ -128,7 +128,7 @@ def test_versions_the_reader_does_not_know_are_refused_by_name(tmp_path):
     err = refusal(PLANS / "mavsdk_wrong_mission_version.plan")  # MAVSDK's own: mission version 7
     assert (err.key, err.line) == ("mission.version", 53)
     assert "mission version 7 is not one this reader knows: expected 2" in err.reason
-    for version, told in ((3, "3"), (None, "null"), ("2", '"2"')):
+    for version, told in ((3, "3"), (None, "null"), ("2", '"2"'), ([], "[]"), (1.5, "1.5")):
         plan = fixture("fence_v1.plan")
         plan["geoFence"]["version"] = version
         err = refusal(write(tmp_path, plan))
