@@ -1,7 +1,7 @@
 """``companion``: fly a mission offboard, re-draw a flight's plots, or check a mission file.
 
     companion fly missions/hover45.toml --controller ism_do      # sitl or PX4 SITL: udpin://0.0.0.0:14540
-    companion fly missions/waypoints.toml --connect udp://127.0.0.1:14580   # the same, by its listening port
+    companion fly missions/square_gps.toml                       # PX4 SITL (5 m up: GPS)
     companion plot flights/20261122-120000_hover45_ism_do
     companion check missions/*.toml
     companion demo                     # start the bundled vehicle, fly hover45 and waypoints
@@ -41,7 +41,7 @@ def _fly(args: argparse.Namespace) -> int:
     try:
         mission = load_mission(args.mission)
     except ConfigError as exc:
-        print(f"companion: error: {exc}", file=sys.stderr)
+        _config_error(exc)
         return 2
     if args.thrust_max is not None and not 1.0 <= args.thrust_max <= 500.0:
         print(f"companion: error: --thrust-max {args.thrust_max:g}: expected 1..500 N", file=sys.stderr)
@@ -87,17 +87,25 @@ def _plot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _config_error(exc: ConfigError) -> None:
+    """The refusal on one line, then what to do about it (if the loader said)."""
+    print(f"companion: error: {exc}", file=sys.stderr)
+    for line in exc.hint.splitlines():
+        print(f"companion: {line}", file=sys.stderr)
+
+
 def _check(args: argparse.Namespace) -> int:
     """Load each mission exactly as ``fly`` does (one loader): ok and what it flies, or the
-    refusal with file:line and key, exit 2."""
+    refusal with file:line and key, exit 2. ``--show``: the steps as they will be flown, in NED."""
     from .mission import extent, load_mission
+    from .mission.show import gps_height_warning, steps_in_ned
 
     status = 0
     for name in args.missions:
         try:
             m = load_mission(name)
         except ConfigError as exc:
-            print(f"companion: error: {exc}", file=sys.stderr)
+            _config_error(exc)
             status = 2
             continue
         far_m, high_m = extent(m)
@@ -106,6 +114,12 @@ def _check(args: argparse.Namespace) -> int:
               f"volume {m.safety.volume.describe()})")
         if "not flown" in m.description or "not used" in m.description:
             print(f"{name}: note: {m.description}")
+        warning = gps_height_warning(m)
+        if warning:
+            print(f"{name}: warning: {warning}")
+        if args.show:
+            for line in steps_in_ned(m):
+                print(line)
     return status
 
 
@@ -222,6 +236,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     plot.set_defaults(func=_plot)
     check = sub.add_parser("check", help="validate mission files")
     check.add_argument("missions", nargs="+")
+    check.add_argument("--show", action="store_true", help="print the steps as they will be flown (a .plan's "
+                       "converted), positions in metres north, east, down of home, and the fences")
     check.set_defaults(func=_check)
     demo = sub.add_parser("demo", help="fly hover45 and waypoints against the bundled simulated vehicle")
     demo.add_argument("--out", default="flights")

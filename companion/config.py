@@ -31,7 +31,7 @@ T = TypeVar("T")
 class ConfigError(ValueError):
     """A parameter file that cannot be used: ``path``, ``line`` (or None), ``key`` and reason."""
 
-    def __init__(self, path: str | Path, line: int | None, key: str, reason: str) -> None:
+    def __init__(self, path: str | Path, line: int | None, key: str, reason: str, hint: str = "") -> None:
         where = f"{path}:{line}" if line else f"{path}"
         # a hostile file's key or value (quoted in the reason) may be a megabyte long
         shown = key if len(key) <= 100 else key[:100] + "..."
@@ -41,6 +41,8 @@ class ConfigError(ValueError):
         self.line = line
         self.key = key
         self.reason = reason
+        self.hint = hint
+        """what to do about it, lines to print after the one-line message (may be empty)"""
 
 
 _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")

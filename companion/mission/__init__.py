@@ -9,7 +9,9 @@ One job per module:
 - :mod:`.envelope` — the table of what every number may be, file bounds, safe names;
 - :mod:`.validate` — the whole-mission checks every loader runs;
 - :mod:`.load` — mission files in TOML (:func:`load_mission`, the one way in, also for ``.plan``);
-- :mod:`.plan` — QGroundControl ``.plan`` import (:func:`load_plan`).
+- :mod:`.plan` — QGroundControl ``.plan`` import (:func:`load_plan`);
+- :mod:`.show` — what ``companion check`` prints about an accepted mission (steps in NED, the
+  warning for missions too low for a vehicle on GPS).
 """
 
 from .envelope import ENVELOPE, Problem, Range, is_safe_component, safe_component

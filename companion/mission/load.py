@@ -27,7 +27,8 @@ reference), ``set_param`` (e.g. the simulated vehicle's suspended weight, ``SIM_
 ``wait``, ``land``. A ``set_param`` step names its parameter with ``param``.
 
 Instead of ``[[steps]]``, ``plan = "survey.plan"`` takes the steps (and the geofence) from a
-QGroundControl plan next to the file, flown with this file's controller, failsafes and volume.
+QGroundControl plan next to the file, flown with this file's controller, failsafes and volume; a
+plan with no mission items (a fence) gives its fence to this file's ``[[steps]]``.
 
 :func:`load_mission` is the one way in, for ``companion check`` and ``companion fly`` alike: the
 file is read within bounds (size, nesting, encoding: :func:`companion.config.read_text`), built into
@@ -68,11 +69,21 @@ def load_mission(path: str | Path) -> Mission:
     steps_raw = data.pop("steps", None)
     if "plan" in data:
         return _with_plan(p, text, data, steps_raw, fail)
+    mission = load_dataclass(Mission, data, p, text)
+    mission = dataclasses.replace(mission, steps=_steps(steps_raw, fail, p, text))
+    try:
+        validate(mission)
+    except Problem as exc:
+        raise fail(exc.key, exc.reason) from None
+    return mission
+
+
+def _steps(steps_raw: object, fail: Fail, p: Path, text: str) -> tuple[Step, ...]:
+    """The ``[[steps]]`` tables as steps, their count and waypoints bounded before they are built."""
     if not isinstance(steps_raw, list) or not steps_raw:
         raise ConfigError(p, locate(text, "steps"), "steps", "expected at least one [[steps]] table")
     if len(steps_raw) > MAX_STEPS:
         raise fail(f"steps[{MAX_STEPS}]", f"expected at most {MAX_STEPS} steps, got {len(steps_raw)}")
-    mission = load_dataclass(Mission, data, p, text)
     steps = []
     waypoints = 0
     for i, raw in enumerate(steps_raw):
@@ -84,12 +95,7 @@ def load_mission(path: str | Path) -> Mission:
             raise fail(f"steps[{i}].waypoints", f"expected at most {MAX_WAYPOINTS} waypoints in a mission, "
                        f"got {waypoints} by this step")
         steps.append(_step_from_table(raw, i, fail, p, text))
-    mission = dataclasses.replace(mission, steps=tuple(steps))
-    try:
-        validate(mission)
-    except Problem as exc:
-        raise fail(exc.key, exc.reason) from None
-    return mission
+    return tuple(steps)
 
 
 def _line(text: str, key: str) -> int | None:
@@ -109,21 +115,27 @@ Fail = Callable[[str, str], ConfigError]
 
 def _with_plan(p: Path, text: str, data: dict[str, Any], steps_raw: object, fail: Fail) -> Mission:
     """A TOML mission whose steps (and fences) come from a QGroundControl plan next to it: the
-    TOML sets the controller, the failsafes and the volume (e.g. a ceiling above a plan's 50 m)."""
+    TOML sets the controller, the failsafes and the volume (e.g. a ceiling above a plan's 50 m).
+    A plan without mission items (a fence, rally points) gives its fences to the TOML's
+    ``[[steps]]``; a plan with items and ``[[steps]]`` as well is refused (which would fly?)."""
     from .plan import import_plan
 
     name = data.pop("plan")
     if not (isinstance(name, str) and is_safe_component(name) and name.endswith(".plan")):
         raise fail("plan", f"expected the file name of a .plan next to this file (letters, digits, '-', '_', '.'; "
                    f"no directories), got {str(name)[:80]!r}")
-    if steps_raw is not None:
-        raise fail("steps", f"the steps come from {name}; expected no [[steps]] with plan = ...")
     imported = import_plan(p.parent / name)
+    if steps_raw is not None and imported.steps:
+        raise fail("steps", f"the steps come from {name}'s mission items; expected no [[steps]] with plan = ... "
+                   "(or a plan with no mission items: a fence)")
+    if steps_raw is None and not imported.steps:
+        raise fail("plan", f"{name} has no mission items (a fence-only plan): expected [[steps]] in this file")
     mission = load_dataclass(Mission, data, p, text)
+    steps = imported.steps or _steps(steps_raw, fail, p, text)
     vol = mission.safety.volume
     volume = dataclasses.replace(vol, circles=vol.circles + imported.circles, polygons=vol.polygons + imported.polygons)
     mission = dataclasses.replace(mission, description=mission.description or imported.description,
-                                  safety=dataclasses.replace(mission.safety, volume=volume), steps=imported.steps)
+                                  safety=dataclasses.replace(mission.safety, volume=volume), steps=steps)
     try:
         validate(mission)
     except Problem as exc:

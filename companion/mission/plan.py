@@ -28,10 +28,17 @@ frame <-> 10, refused), and ``Altitude`` with param 7 where the mode says they a
 Geofence: every circle and polygon becomes a fence of the mission's safety volume, inclusion or
 exclusion as flagged; with an inclusion fence the fence, not the default cylinder, bounds the
 horizontal extent (up to the envelope's 1000 m). The height limit is the default volume's.
+``geoFence.version`` 2 has ``circles`` and ``polygons``; version 1, QGroundControl's older fence,
+one ``polygon`` of corners, the area to stay inside (an inclusion polygon). The plan file's
+``version`` (1), ``mission.version`` (2) and ``geoFence.version`` are checked: any other is
+refused by name. A plan without mission items (a fence, rally points) is no mission on its own:
+a TOML mission with ``[[steps]]`` and ``plan = ...`` takes its fence.
 
 Errors name the file, the JSON line, the item path (``mission.items[3].params[6]``) and what was
-expected; checks after conversion (the volume, the envelope) are reported against the item that
-produced the offending step.
+expected, values spelt as JSON (``null``, ``true``); checks after conversion (the volume, the
+envelope) are reported against the item that produced the offending step. A plan flown alone
+that leaves the default volume's ceiling or distance gets, as the error's ``hint``, the TOML to
+write beside it (:func:`volume_hint`).
 
 :func:`load_plan` flies a plan with the default controller, failsafes and volume;
 :func:`import_plan` gives the converted steps and fences to a TOML mission that names the plan
@@ -65,9 +72,9 @@ from .envelope import (
 )
 from .model import Mission, SafetyConfig, Step
 from .safety import FenceCircle, FencePolygon, SafetyVolume, Vec2
-from .validate import leg_time_s, validate
+from .validate import extent, leg_time_s, validate
 
-__all__ = ["load_plan", "import_plan", "ImportedPlan", "json_line", "EARTH_RADIUS_M", "COMMAND_NAMES"]
+__all__ = ["load_plan", "import_plan", "ImportedPlan", "volume_hint", "json_line", "EARTH_RADIUS_M", "COMMAND_NAMES"]
 
 EARTH_RADIUS_M = 6378137.0
 """WGS-84 equatorial radius"""
@@ -114,6 +121,15 @@ class _Refusal(Exception):
         self.reason = reason
 
 
+def _json(x: object) -> str:
+    """A value as the plan's JSON spells it (null, true, "text"), cut to 40 characters."""
+    try:
+        text = json.dumps(x)
+    except (TypeError, ValueError):
+        text = repr(x)
+    return text if len(text) <= 40 else text[:40] + "..."
+
+
 def _number(x: object) -> TypeGuard[float]:
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
 
@@ -155,27 +171,32 @@ class _Converter:
 
     def coordinate(self, lat: object, lon: object, where: Path_) -> Vec2:
         if not (_number(lat) and _number(lon) and abs(lat) <= 90.0 and abs(lon) <= 180.0):
-            raise _Refusal(where, f"expected latitude and longitude in degrees, got {[lat, lon]!r}")
+            raise _Refusal(where, f"expected latitude and longitude in degrees, got {_json([lat, lon])}")
         return self.ne(float(lat), float(lon))
 
     def height(self, item: dict[str, Any], where: Path_) -> float:
         """Param 7 as metres above home, from the item's frame (and its AltitudeMode, if any)."""
         frame, alt = item.get("frame"), item["params"][6]
         if not _number(alt):
-            raise _Refusal(where + ("params", 6), f"expected an altitude in metres, got {alt!r}")
+            why = ""
+            if alt is None and item.get("AltitudeMode") == 3:
+                why = (": AltitudeMode 3 (calculated above terrain) without the altitude QGroundControl computes from "
+                       "its terrain data (it had none when it saved the plan); open the plan in QGroundControl with "
+                       "terrain data, or choose 'Relative to launch'")
+            raise _Refusal(where + ("params", 6), f"expected an altitude in metres, got {_json(alt)}{why}")
         if "AltitudeMode" in item:
             mode = item["AltitudeMode"]
             if not isinstance(mode, int) or isinstance(mode, bool) or mode not in _MODE_FRAMES:
                 raise _Refusal(where + ("AltitudeMode",), f"expected 1 (relative to launch), 2 (AMSL), 3 (calculated "
-                               f"above terrain) or 4 (terrain frame), got {mode!r}")
+                               f"above terrain) or 4 (terrain frame), got {_json(mode)}")
             if frame not in _MODE_FRAMES[mode]:
                 raise _Refusal(where + ("frame",), f"AltitudeMode {mode} ({_MODE_NAMES[mode]}) expects frame "
-                               f"{_MODE_FRAMES[mode][0]}, got {frame!r}: the item contradicts itself")
+                               f"{_MODE_FRAMES[mode][0]}, got {_json(frame)}: the item contradicts itself")
             same = item.get("Altitude") if mode in (1, 2) else item.get("AMSLAltAboveTerrain") if mode == 3 else alt
             if not (_number(same) and abs(float(same) - float(alt)) <= 0.01):
                 k = "Altitude" if mode in (1, 2) else "AMSLAltAboveTerrain"
                 raise _Refusal(where + (k,), f"expected {alt!r}, the altitude of params[6] for AltitudeMode {mode} "
-                               f"({_MODE_NAMES[mode]}), got {same!r}")
+                               f"({_MODE_NAMES[mode]}), got {_json(same)}")
         if frame in _RELATIVE:
             return float(alt)
         if frame in _AMSL:
@@ -188,26 +209,26 @@ class _Converter:
                            "companion flies heights above home and has no terrain model; in QGroundControl choose "
                            "'Relative to launch' or 'AMSL'")
         raise _Refusal(where + ("frame",), f"expected frame 3 (relative to home), 0 (AMSL) or 10 (terrain), "
-                       f"got {frame!r}")
+                       f"got {_json(frame)}")
 
     # --- items --------------------------------------------------------------------------------
 
     def item(self, item: object, where: Path_) -> None:
         if not isinstance(item, dict):
-            raise _Refusal(where, "expected a mission item (an object)")
+            raise _Refusal(where, f"expected a mission item (an object), got {_json(item)}")
         if item.get("type") == "ComplexItem":
-            raise _Refusal(where + ("type",), f"a complex item ({str(item.get('complexItemType'))[:40]!r}) is not "
+            raise _Refusal(where + ("type",), f"a complex item ({_json(item.get('complexItemType'))}) is not "
                            "supported; expected simple items")
         if item.get("type") != "SimpleItem":
-            raise _Refusal(where + ("type",), f"expected \"SimpleItem\", got {str(item.get('type'))[:40]!r}")
+            raise _Refusal(where + ("type",), f"expected \"SimpleItem\", got {_json(item.get('type'))}")
         cmd, params = item.get("command"), item.get("params")
         if not isinstance(params, list) or len(params) != 7:
             raise _Refusal(where + ("params",), "expected 7 params (null for the unused ones)")
         for k, v in enumerate(params):
             if (v is not None and not isinstance(v, int | float)) or isinstance(v, bool):
-                raise _Refusal(where + ("params", k), f"expected a number or null, got {str(v)[:40]!r}")
+                raise _Refusal(where + ("params", k), f"expected a number or null, got {_json(v)}")
         if not isinstance(cmd, int) or isinstance(cmd, bool):
-            raise _Refusal(where + ("command",), f"expected a MAVLink command number, got {str(cmd)[:40]!r}")
+            raise _Refusal(where + ("command",), f"expected a MAVLink command number, got {_json(cmd)}")
         if self.phase == "done":
             assert self.ended_by is not None
             raise _Refusal(where, f"nothing may follow the land or RTL item {_key(self.ended_by)}: the mission ends "
@@ -250,23 +271,23 @@ class _Converter:
             raise _Refusal(where, "a waypoint before the take-off item (22): expected the take-off first")
         if cmd == WAYPOINT and params[3] is not None and not math.isnan(params[3]):
             raise _Refusal(where + ("params", 3), f"a waypoint yaw is not supported; expected null (QGroundControl's "
-                           f"empty heading), got {params[3]!r}")
+                           f"empty heading), got {_json(params[3])}")
         n, e = self.coordinate(params[4], params[5], where + ("params", 4))
         h = self.height(item, where)
         hold = params[0] or 0.0
         if not 0.0 <= hold <= ENVELOPE["steps[].hold_s"].hi:
             raise _Refusal(where + ("params", 0), f"expected a hold time of {ENVELOPE['steps[].hold_s'].text()}, "
-                           f"got {hold!r}")
+                           f"got {_json(hold)}")
         radius = params[1] if cmd == WAYPOINT and params[1] else Step.tolerance_m
         self.push(_Waypoint((n, e, -h), self.speed, self.speed_from, float(hold), float(radius), where))
 
     def change_speed(self, params: list[Any], where: Path_) -> None:
         kind, speed, throttle = params[0], params[1], params[2]
         if kind not in (0, 1):
-            raise _Refusal(where + ("params", 0), f"expected speed type 0 (air) or 1 (ground), got {kind!r}: climb "
-                           "and descent speeds are not supported")
+            raise _Refusal(where + ("params", 0), f"expected speed type 0 (air) or 1 (ground), got {_json(kind)}: "
+                           "climb and descent speeds are not supported")
         if throttle not in (None, -1, 0):
-            raise _Refusal(where + ("params", 2), f"expected no throttle (-1), got {throttle!r}: a multicopter's "
+            raise _Refusal(where + ("params", 2), f"expected no throttle (-1), got {_json(throttle)}: a multicopter's "
                            "offboard flight sets no throttle")
         if speed == -1:
             return
@@ -282,8 +303,8 @@ class _Converter:
     def delay(self, params: list[Any], where: Path_) -> None:
         seconds = params[0]
         if not _number(seconds) or seconds < 0:
-            raise _Refusal(where + ("params", 0), f"expected a delay in seconds, got {seconds!r} (a time of day is "
-                           "not supported)")
+            raise _Refusal(where + ("params", 0), f"expected a delay in seconds, got {_json(seconds)} (a time of "
+                           "day is not supported)")
         if seconds == 0:
             return
         self.flush()
@@ -360,14 +381,26 @@ class _Converter:
 
 
 def _fences(fence: object, conv: _Converter) -> tuple[tuple[FenceCircle, ...], tuple[FencePolygon, ...]]:
+    """Version 2: circles and polygons, each inclusion or exclusion. Version 1 (QGroundControl
+    before 3.3; MAVSDK's and QGroundControl's own test plans carry it): one ``polygon`` of
+    [lat, lon] corners, the area to stay inside (the autopilots' single polygon fence of the time
+    was an inclusion fence); its ``breachReturn`` point is not used, like version 2's."""
     if fence is None:
         return (), ()
     base: Path_ = ("geoFence",)
     if not isinstance(fence, dict):
-        raise _Refusal(base, "expected an object with circles and polygons")
+        raise _Refusal(base, f"expected an object with circles and polygons, got {_json(fence)}")
+    if _version(fence, base, FENCE_VERSIONS, "geoFence") == 1:
+        corners = fence.get("polygon", [])
+        if not isinstance(corners, list):
+            raise _Refusal(base + ("polygon",), f"expected a list of [latitude, longitude] corners (version 1), "
+                           f"got {_json(corners)}")
+        if not corners:
+            return (), ()
+        return (), (_polygon(corners, True, base + ("polygon",), conv),)
     circles_raw, polygons_raw = fence.get("circles", []), fence.get("polygons", [])
     if not isinstance(circles_raw, list) or not isinstance(polygons_raw, list):
-        raise _Refusal(base, "expected lists \"circles\" and \"polygons\"")
+        raise _Refusal(base, "expected lists \"circles\" and \"polygons\" (version 2)")
     if len(circles_raw) + len(polygons_raw) > MAX_FENCES:
         raise _Refusal(base, f"expected at most {MAX_FENCES} fences, got {len(circles_raw) + len(polygons_raw)}")
     circles = []
@@ -379,10 +412,10 @@ def _fences(fence: object, conv: _Converter) -> tuple[tuple[FenceCircle, ...], t
             raise _Refusal(w, "expected {\"circle\": {\"center\": [lat, lon], \"radius\": r}, \"inclusion\": ...}")
         inclusion = c.get("inclusion")
         if not isinstance(inclusion, bool):
-            raise _Refusal(w + ("inclusion",), f"expected true or false, got {inclusion!r}")
+            raise _Refusal(w + ("inclusion",), f"expected true or false, got {_json(inclusion)}")
         radius = body.get("radius")
         if not _number(radius):
-            raise _Refusal(w + ("circle", "radius"), f"expected a radius in metres, got {radius!r}")
+            raise _Refusal(w + ("circle", "radius"), f"expected a radius in metres, got {_json(radius)}")
         center = conv.coordinate(body["center"][0], body["center"][1], w + ("circle", "center"))
         circles.append(FenceCircle(center, float(radius), inclusion))
     polygons = []
@@ -393,16 +426,20 @@ def _fences(fence: object, conv: _Converter) -> tuple[tuple[FenceCircle, ...], t
             raise _Refusal(w, "expected {\"polygon\": [[lat, lon], ...], \"inclusion\": ...}")
         inclusion = poly.get("inclusion")
         if not isinstance(inclusion, bool):
-            raise _Refusal(w + ("inclusion",), f"expected true or false, got {inclusion!r}")
-        if not 3 <= len(corners) <= MAX_FENCE_VERTICES:
-            raise _Refusal(w + ("polygon",), f"expected 3..{MAX_FENCE_VERTICES} corners, got {len(corners)}")
-        vertices = []
-        for j, v in enumerate(corners):
-            if not isinstance(v, list) or len(v) < 2:
-                raise _Refusal(w + ("polygon", j), f"expected [latitude, longitude], got {str(v)[:40]}")
-            vertices.append(conv.coordinate(v[0], v[1], w + ("polygon", j)))
-        polygons.append(FencePolygon(tuple(vertices), inclusion))
+            raise _Refusal(w + ("inclusion",), f"expected true or false, got {_json(inclusion)}")
+        polygons.append(_polygon(corners, inclusion, w + ("polygon",), conv))
     return tuple(circles), tuple(polygons)
+
+
+def _polygon(corners: list[Any], inclusion: bool, where: Path_, conv: _Converter) -> FencePolygon:
+    if not 3 <= len(corners) <= MAX_FENCE_VERTICES:
+        raise _Refusal(where, f"expected 3..{MAX_FENCE_VERTICES} corners, got {len(corners)}")
+    vertices = []
+    for j, v in enumerate(corners):
+        if not isinstance(v, list) or len(v) < 2:
+            raise _Refusal(where + (j,), f"expected [latitude, longitude], got {_json(v)}")
+        vertices.append(conv.coordinate(v[0], v[1], where + (j,)))
+    return FencePolygon(tuple(vertices), inclusion)
 
 
 @dataclass(frozen=True)
@@ -417,6 +454,8 @@ class ImportedPlan:
     description: str
     origin: dict[str, Path_]
     """``steps[i]``, ``steps[i].waypoints[j]``, ... -> the item (or param) that made it"""
+    fence_version: int = 2
+    """1: ``geoFence.polygon`` is the one (inclusion) polygon; 2: ``geoFence.polygons[i].polygon``"""
 
     @property
     def has_inclusion_fence(self) -> bool:
@@ -428,13 +467,16 @@ class ImportedPlan:
         line and item path; None if the key is not this plan's."""
         origin = dict(self.origin)
         for i in range(len(self.circles)):
-            k, w = f"safety.volume.circles[{circles_before + i}]", ("geoFence", "circles", i)
+            k = f"safety.volume.circles[{circles_before + i}]"
+            w: Path_ = ("geoFence", "circles", i)
             origin.update({k: w, f"{k}.center_ne_m": w + ("circle", "center"),
                            f"{k}.radius_m": w + ("circle", "radius")})
         for i, poly in enumerate(self.polygons):
-            k, w = f"safety.volume.polygons[{polygons_before + i}]", ("geoFence", "polygons", i)
-            origin.update({k: w, f"{k}.vertices_ne_m": w + ("polygon",)})
-            origin.update({f"{k}.vertices_ne_m[{j}]": w + ("polygon", j) for j in range(len(poly.vertices_ne_m))})
+            k = f"safety.volume.polygons[{polygons_before + i}]"
+            w = ("geoFence",) if self.fence_version == 1 else ("geoFence", "polygons", i)
+            corners: Path_ = w + ("polygon",)
+            origin.update({k: w, f"{k}.vertices_ne_m": corners})
+            origin.update({f"{k}.vertices_ne_m[{j}]": corners + (j,) for j in range(len(poly.vertices_ne_m))})
         if not circles_before and not polygons_before and (self.circles or self.polygons):
             origin["safety.volume"] = ("geoFence",)
         where = _origin_of(problem.key, origin)
@@ -462,14 +504,19 @@ def import_plan(path: str | Path) -> ImportedPlan:
     except _Refusal as exc:
         raise ConfigError(p, json_line(text, exc.where), _key(exc.where), exc.reason) from None
     description = f"imported from {safe_component(p.stem)}.plan (QGroundControl)"
-    if conv.skipped:
+    if conv is None:
+        description = f"fence from {safe_component(p.stem)}.plan (QGroundControl)"
+    elif conv.skipped:
         description += "; not flown: items " + ", ".join(conv.skipped)
     rally = plan.get("rallyPoints")
     if isinstance(rally, dict) and rally.get("points"):
         description += "; rally points not used (RTL returns home)"
     if len(description) > 1000:
         description = description[:996] + " ..."
-    return ImportedPlan(p, text, tuple(conv.steps), circles, polygons, description, conv.origin)
+    steps, origin = (tuple(conv.steps), conv.origin) if conv is not None else ((), {})
+    fence = plan.get("geoFence")
+    return ImportedPlan(p, text, steps, circles, polygons, description, origin,
+                        fence_version=1 if isinstance(fence, dict) and fence.get("version") == 1 else 2)
 
 
 def load_plan(path: str | Path) -> Mission:
@@ -478,6 +525,10 @@ def load_plan(path: str | Path) -> Mission:
     1000 m), checked whole like a TOML mission; every refusal is a :class:`ConfigError` naming the
     file, the JSON line, the item path and what was expected."""
     imp = import_plan(path)
+    if not imp.steps:
+        raise ConfigError(imp.path, json_line(imp.text, ("mission", "items")), "mission.items",
+                          "the plan has no mission items (a fence-only plan): fly it from a TOML mission beside it "
+                          f"that has the [[steps]] and plan = \"{imp.path.name}\" (the plan gives the fence)")
     volume = SafetyVolume(circles=imp.circles, polygons=imp.polygons)
     if imp.has_inclusion_fence:
         volume = dataclasses.replace(volume, max_distance_m=float(ENVELOPE["safety.volume.max_distance_m"].hi))
@@ -486,26 +537,82 @@ def load_plan(path: str | Path) -> Mission:
     try:
         validate(mission)
     except Problem as exc:
-        raise imp.error(exc) or ConfigError(imp.path, None, exc.key, exc.reason) from None
+        err = imp.error(exc) or ConfigError(imp.path, None, exc.key, exc.reason)
+        if "outside the safety volume" in exc.reason and re.search(r"m (from|above) home, limit", exc.reason):
+            err.hint = volume_hint(mission, imp.path)
+        raise err from None
     return mission
 
 
-def _convert(plan: Any) -> tuple[_Converter, tuple[FenceCircle, ...], tuple[FencePolygon, ...]]:
+def _room_m(x_m: float) -> float:
+    """A limit above ``x_m`` with room for tracking and a GPS height: 10 m or 10 %, whichever is
+    more, rounded up to 10 m."""
+    return 10.0 * math.ceil((x_m + max(10.0, 0.1 * x_m)) / 10.0)
+
+
+def volume_hint(mission: Mission, plan_path: Path) -> str:
+    """What to write to fly ``mission`` (a plan with the default volume) under a volume that holds
+    it: a TOML mission beside the plan, with the snippet, limits rounded up from the plan's extent."""
+    far_m, high_m = extent(mission)
+    env_far = ENVELOPE["safety.volume.max_distance_m"].hi
+    env_high = ENVELOPE["safety.volume.max_altitude_m"].hi
+    if high_m > env_high or far_m > env_far:
+        return (f"the plan flies {far_m:.1f} m from home and {high_m:.1f} m above it; a mission's volume goes up to "
+                f"{env_far:g} m out and {env_high:g} m up: move its waypoints in QGroundControl")
+    stem = safe_component(plan_path.stem)
+    return "\n".join([
+        f"a .plan sets no ceiling or distance limit (flown alone: {mission.safety.volume.describe()}); to fly "
+        f"this plan, write {stem}.toml beside it, which sets them:",
+        f"    name = \"{stem}\"",
+        f"    plan = \"{plan_path.name}\"",
+        "    [safety.volume]",
+        f"    max_distance_m = {min(_room_m(far_m), env_far):g}    # the plan flies within {far_m:.1f} m of home",
+        f"    max_altitude_m = {min(_room_m(high_m), env_high):g}    # and up to {high_m:.1f} m above it",
+        f"then: companion check --show {stem}.toml",
+    ])
+
+
+PLAN_VERSION, MISSION_VERSION = 1, 2
+"""the versions of the plan file and its mission object that QGroundControl writes"""
+FENCE_VERSIONS = {1: "one polygon to stay inside, QGroundControl's older fence", 2: "circles and polygons"}
+
+
+def _version(obj: dict[str, Any], where: Path_, known: dict[int, str], what: str) -> int:
+    """The object's ``version``, refused by name unless it is one of ``known``."""
+    v = obj.get("version")
+    if not isinstance(v, int) or isinstance(v, bool) or v not in known:
+        told = " or ".join(f"{k} ({name})" for k, name in known.items())
+        raise _Refusal(where + ("version",), f"{what} version {_json(v)} is not one this reader knows: "
+                       f"expected {told}")
+    return int(v)
+
+
+def _convert(plan: Any) -> tuple[_Converter | None, tuple[FenceCircle, ...], tuple[FencePolygon, ...]]:
+    """The plan's steps (None when it has no mission items: a fence-only plan) and fences."""
     if not isinstance(plan, dict) or plan.get("fileType") != "Plan":
         raise _Refusal(("fileType",) if isinstance(plan, dict) else (), "expected a QGroundControl plan "
                        "(\"fileType\": \"Plan\")")
-    if plan.get("version", 1) != 1:
-        raise _Refusal(("version",), f"expected plan file version 1, got {plan.get('version')!r}")
+    _version(plan, (), {PLAN_VERSION: "QGroundControl's plan file"}, "plan file")
     mission = plan.get("mission")
-    if not isinstance(mission, dict):
-        raise _Refusal(("mission",), "expected the mission object")
-    home, items = mission.get("plannedHomePosition"), mission.get("items")
+    if mission is not None and not isinstance(mission, dict):
+        raise _Refusal(("mission",), f"expected the mission object, got {_json(mission)}")
+    if mission is not None:
+        _version(mission, ("mission",), {MISSION_VERSION: "the mission of QGroundControl's plan file"}, "mission")
+    home = mission.get("plannedHomePosition") if mission else None
+    items = mission.get("items", []) if mission else []
+    if not isinstance(items, list):
+        raise _Refusal(("mission", "items"), f"expected a list of mission items, got {_json(items)}")
+    fence = plan.get("geoFence")
+    if fence is not None and not isinstance(fence, dict):
+        raise _Refusal(("geoFence",), f"expected an object with circles and polygons, got {_json(fence)}")
+    if fence is not None:
+        _version(fence, ("geoFence",), FENCE_VERSIONS, "geoFence")
+    if not items and not _fence_has_points(fence):
+        return None, (), ()
     if not (isinstance(home, list) and len(home) == 3 and _number(home[0]) and _number(home[1])
             and abs(home[0]) <= 89.0 and abs(home[1]) <= 180.0):
         raise _Refusal(("mission", "plannedHomePosition"), f"expected [latitude, longitude, altitude AMSL] of home, "
-                       f"latitude within 89 deg, got {str(home)[:80]}")
-    if not isinstance(items, list) or not items:
-        raise _Refusal(("mission", "items"), "expected a list of mission items")
+                       f"latitude within 89 deg (the plan's coordinates are flown around it), got {_json(home)}")
     if len(items) > MAX_PLAN_ITEMS:
         raise _Refusal(("mission", "items", MAX_PLAN_ITEMS), f"expected at most {MAX_PLAN_ITEMS} items, "
                        f"got {len(items)}")
@@ -514,13 +621,17 @@ def _convert(plan: Any) -> tuple[_Converter, tuple[FenceCircle, ...], tuple[Fenc
         conv.item(item, ("mission", "items", n))
         if conv.waypoints > MAX_WAYPOINTS:
             raise _Refusal(("mission", "items", n), f"expected at most {MAX_WAYPOINTS} waypoints")
-    if conv.phase == "ground":
+    if items and conv.phase == "ground":
         raise _Refusal(("mission", "items"), "expected a take-off item (command 22)")
     if conv.phase == "air":
         raise _Refusal(("mission", "items", len(items) - 1), "the mission ends in the air: expected a land (21) or "
                        "RTL (20) item last")
-    circles, polygons = _fences(plan.get("geoFence"), conv)
-    return conv, circles, polygons
+    circles, polygons = _fences(fence, conv)
+    return (conv if items else None), circles, polygons
+
+
+def _fence_has_points(fence: object) -> bool:
+    return isinstance(fence, dict) and any(fence.get(k) for k in ("polygon", "polygons", "circles"))
 
 
 def _origin_of(key: str, origin: dict[str, Path_]) -> Path_ | None:

@@ -169,7 +169,7 @@ def test_unsupported_commands_are_named(tmp_path, cmd, name):
 def test_a_complex_item(tmp_path):
     plan = fixture("square_relative.plan")
     plan["mission"]["items"][4] = {"complexItemType": "survey", "type": "ComplexItem", "version": 5}
-    refused(tmp_path, plan, "mission.items[4].type", "complex item ('survey')", line_has='"ComplexItem"')
+    refused(tmp_path, plan, "mission.items[4].type", 'complex item ("survey")', line_has='"ComplexItem"')
 
 
 def test_change_speed_variants(tmp_path):
@@ -258,7 +258,7 @@ def test_not_a_plan(tmp_path):
     refused(tmp_path, plan, "fileType", '"fileType": "Plan"', line_has='"Mission"')
     plan = fixture("square_relative.plan")
     plan["version"] = 2
-    refused(tmp_path, plan, "version", "version 1")
+    refused(tmp_path, plan, "version", "plan file version 2 is not one this reader knows", "expected 1")
     p = tmp_path / "x.plan"
     p.write_text('{\n  "fileType": "Plan",\n  "mission": {\n    "items": [1, 2,]\n  }\n}\n')
     with pytest.raises(ConfigError) as e:
