@@ -14,6 +14,7 @@ import subprocess
 import sys
 import threading
 import time
+from typing import Any
 from pathlib import Path
 
 from pymavlink import mavutil
@@ -233,26 +234,40 @@ class CompanionProcess:
                                      env=child_env(**(env or {})))
         self.lines: list[str] = []
         self.out_dir = out_dir
+        self._pending = ""
+        """output read from the pipe that is not yet a whole line"""
+        self._decoder: Any = None
 
     def wait_for(self, fragment: str, timeout: float = 60.0) -> str:
-        import selectors
+        """The first new line of output containing ``fragment``. Reads the pipe's bytes itself: a
+        text readline() buffers the lines that came with it, which select() no longer sees, so a
+        line could wait for more output before it was looked at."""
+        import codecs
+        import select
 
-        sel = selectors.DefaultSelector()
-        sel.register(self.proc.stdout, selectors.EVENT_READ)  # type: ignore[arg-type]
+        if self._decoder is None:
+            self._decoder = codecs.getincrementaldecoder("utf-8")(errors="replace")
+        fd = self.proc.stdout.fileno()  # type: ignore[union-attr]
         end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if sel.select(timeout=0.2):
-                line = self.proc.stdout.readline()  # type: ignore[union-attr]
-                if not line:
-                    break
-                self.lines.append(line)
+        while True:
+            while "\n" in self._pending:
+                line, self._pending = self._pending.split("\n", 1)
+                self.lines.append(line + "\n")
                 if fragment in line:
-                    return line
-        raise AssertionError(f"companion never printed {fragment!r}; output:\n{''.join(self.lines)}")
+                    return line + "\n"
+            if time.monotonic() >= end:
+                break
+            if select.select([fd], [], [], 0.2)[0]:
+                chunk = os.read(fd, 65536)
+                if not chunk:
+                    break
+                self._pending += self._decoder.decode(chunk)
+        raise AssertionError(f"companion never printed {fragment!r}; output:\n{''.join(self.lines)}{self._pending}")
 
     def finish(self, timeout: float = 120.0) -> tuple[int, str]:
         out, _ = self.proc.communicate(timeout=timeout)
-        self.lines.append(out)
+        self.lines.append(self._pending + out)
+        self._pending = ""
         return self.proc.returncode, "".join(self.lines)
 
     def flight_dir(self) -> Path:

@@ -115,7 +115,11 @@ def test_hover45_holds_position_at_45_degrees_and_does_not_overshoot_on_release(
 def test_killing_the_vehicle_mid_flight_ends_the_companion_with_a_clear_error(sitl, companion):
     """The vehicle process dies in the 45 deg hover: nothing arrives any more, and after the
     3 s link-lost bound the companion exits with code 3 and says so (it cannot land a vehicle it
-    cannot reach; the vehicle's own failsafe is what protects a real one)."""
+    cannot reach; the vehicle's own failsafe is what protects a real one). The mission wrote SIM_*
+    parameters, so before it exits it waits up to RESTORE_WITHIN_S for the vehicle to come back
+    and take them back (a link that returns gets them), then names them as not put back."""
+    from companion.flight.prepare import RESTORE_WITHIN_S
+
     s = sitl(*WAIT, speedup=SPEEDUP)
     c = companion("missions/hover45.toml", s.url)
     c.wait_for("step 45 deg hover")
@@ -124,7 +128,7 @@ def test_killing_the_vehicle_mid_flight_ends_the_companion_with_a_clear_error(si
     code, out = c.finish(timeout=30)
     assert code == 3, out
     assert "vehicle link lost" in out
-    assert time.monotonic() - t0 < 3.0 + 5.0
+    assert time.monotonic() - t0 < 3.0 + RESTORE_WITHIN_S + 5.0
 
 
 def test_killing_the_companion_lets_the_vehicle_failsafe_land(sitl, companion, client):
