@@ -88,12 +88,13 @@ class Seen:
         return math.degrees(math.atan2(self.v_ned_m_s[1], self.v_ned_m_s[0]))
 
     def yaw_rate_deg_s(self, speed: float, over_s: float = 1.0) -> float:
-        """The mean yaw rate over the last ``over_s`` vehicle seconds (unwrapped)."""
-        loop = asyncio.get_running_loop()
-        start = loop.time() - over_s / speed
+        """The mean yaw rate over the last ``over_s`` vehicle seconds (unwrapped), timed by the
+        attitude's own stamps (a loaded host runs the vehicle slower than ``speed``: timed by the
+        wall clock, 30 deg/s read 15). ``speed`` is kept for the callers; the stamps need none."""
+        start = self.yaws[-1][0] - over_s
         recent = [(t, y) for t, y in self.yaws if t >= start]
         turned = sum(_wrap(b[1] - a[1]) for a, b in zip(recent, recent[1:]))
-        return turned / ((recent[-1][0] - recent[0][0]) * speed)
+        return turned / (recent[-1][0] - recent[0][0])
 
 
 def _wrap(deg: float) -> float:
@@ -101,8 +102,6 @@ def _wrap(deg: float) -> float:
 
 
 async def _watch(tel: TelemetryAsync, seen: Seen) -> None:
-    loop = asyncio.get_running_loop()
-
     async def position() -> None:
         async for pv in tel.subscribe_position_velocity_ned():
             p, v = pv.position, pv.velocity
@@ -112,7 +111,7 @@ async def _watch(tel: TelemetryAsync, seen: Seen) -> None:
     async def attitude() -> None:
         async for e in tel.subscribe_attitude_euler():
             seen.roll_deg, seen.yaw_deg = e.roll_deg, e.yaw_deg
-            seen.yaws.append((loop.time(), e.yaw_deg))
+            seen.yaws.append((e.timestamp_us * 1e-6, e.yaw_deg))  # vehicle time
             del seen.yaws[:-400]
 
     async def mode() -> None:
