@@ -589,7 +589,8 @@ class Autopilot:
         self._note_setpoint(sender)
         if self.offboard_position is None and self.mode == Mode.OFFBOARD:
             self._restart_reference()
-        self.offboard_position = (pos_ned_m, yaw_rad)
+        o = self.vehicle.estimate_offset_ned_m  # sent in the reported estimate's frame
+        self.offboard_position = ((pos_ned_m[0] - o[0], pos_ned_m[1] - o[1], pos_ned_m[2] - o[2]), yaw_rad)
         return None
 
     def _note_setpoint(self, sender: int) -> None:
