@@ -106,6 +106,8 @@ class SegmentStats:
     peak_tilt_deg: float = 0.0
     force_estimate_n: tuple[float, float, float] = (math.nan, math.nan, math.nan)
     thrust_max_est_n: float = math.nan
+    position_resets: int = 0
+    """estimator resets found during the step (re-anchored: companion/link/resets.py)"""
     ok: bool = True
     note: str = ""
 
@@ -320,6 +322,10 @@ def summary_markdown(data: dict) -> str:
         f"{data.get('rate_hz', '')} Hz asked for), rejected by the guard: {data.get('setpoints_rejected', '')}",
         *([f"- skipped on this vehicle: {'; '.join(data['skipped_steps'])}"] if data.get("skipped_steps") else []),
         *([f"- parameters NOT put back: {data['params_not_restored']}"] if data.get("params_not_restored") else []),
+        *(["- estimator resets (re-anchored, position jumps the vehicle did not make): "
+           + "; ".join(f"{math.hypot(*r['shift_ned_m']):.2f} m at t={r['t']:.2f} s "
+                       f"({'announced' if r['announced'] else 'not announced'})" for r in data["position_resets"])]
+          if data.get("position_resets") else []),
         "",
         "Times and durations are vehicle seconds (the autopilot's clock), not wall time.",
         "",
