@@ -52,7 +52,9 @@ COLUMNS = (
 )
 """t: vehicle clock [s]; wall: seconds since the flight started; step: mission step index;
 offboard: the autopilot flies our setpoints (1/0); streaming: a setpoint was sent this tick;
-positions NED [m]; *_ref the reference; q* the vehicle's attitude, q*_d and p_d.. the setpoint
+positions NED [m], in the frame the flight began in (the autopilot's estimate less the estimator
+resets found: companion/link/resets.py; the estimate itself is in traffic.tlog); *_ref the reference;
+q* the vehicle's attitude, q*_d and p_d.. the setpoint
 (rates in rad/s); thrust_n the controller's thrust [N], thrust the normalised value sent;
 f* the controller's force [N]; hf* the force-disturbance estimate [N]; thrust_max_n the scale in
 use, thrust_max_est_n its online estimate [N]; t_pos: the vehicle time the position was measured at
