@@ -101,3 +101,49 @@ def test_a_position_reset_in_a_hold_is_not_flown(sitl, companion, tmp_path, para
     assert excursion < 0.10, excursion
     assert seg["hold after"]["peak_tilt_deg"] < 10.0, seg["hold after"]["peak_tilt_deg"]
     assert not s.stop()["armed"]
+
+
+UNSTABLE = """name = "unstable_estimate"
+[controller]
+position = "ism_do"
+[[steps]]
+action = "takeoff"
+altitude_m = 1.5
+[[steps]]
+action = "offboard"
+[[steps]]
+action = "hold"
+duration_s = 2.0
+""" + "".join(f"""[[steps]]
+action = "set_param"
+param = "SIM_POS_JUMP_{axis}"
+value = {value}
+sim_only = true
+[[steps]]
+action = "hold"
+duration_s = 1.0
+""" for axis, value in (("N", 2.0), ("E", -3.0), ("N", -2.0))) + """[[steps]]
+action = "hold"
+duration_s = 5.0
+[[steps]]
+action = "land"
+"""
+
+
+def test_an_estimate_that_keeps_resetting_ends_the_mission(sitl, companion, tmp_path):
+    """Three unannounced jumps within 10 s: an estimate not to fly offboard on. The mission ends
+    (exit 1, the reason named) with hold, then land, and the vehicle ends disarmed; each jump was
+    re-anchored, so the vehicle never went anywhere (true position within 0.10 m of where it held
+    until the landing, as above)."""
+    path = tmp_path / "unstable.toml"
+    path.write_text(UNSTABLE)
+    s = sitl(*PAPER, *LOCKSTEP, speedup=LOCKSTEP_SPEEDUP)
+    c = companion(str(path), s.url, *PAPER_OUTPUT)
+    code, out = c.finish(timeout=240)
+    assert code == 1, out
+    assert "position estimate reset 3 times within 10 s: not flown on" in out, out
+    assert "holding, then landing" in out
+    summary = segments(c.flight_dir())["_summary"]
+    assert len(summary["position_resets"]) == 3
+    assert math.dist(summary["position_offset_ned_m"], (0.0, -3.0, 0.0)) < 0.05
+    assert not s.stop()["armed"]
