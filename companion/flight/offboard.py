@@ -24,10 +24,26 @@ from .guard import SetpointGuard
 from companion.link.state import VehicleState
 from .thrust_scale import ThrustScaleEstimator
 
-__all__ = ["Setpoint", "PositionTarget", "Tick", "OffboardController", "propagate", "MAX_PROPAGATION_S", "AUTOPILOT"]
+__all__ = ["Setpoint", "PositionTarget", "Tick", "OffboardController", "propagate", "MAX_PROPAGATION_S", "AUTOPILOT",
+           "MAX_POSITION_ERROR_M", "bounded_position"]
 
 MAX_PROPAGATION_S = 0.1
 """the longest a position sample is propagated forward (beyond, it is stale anyway)"""
+MAX_POSITION_ERROR_M = 1.0
+"""the largest position error the controller is shown [m]: a position that jumps (an estimator
+reset too small or too slow to be found, link/resets.py) commands at most what 1 m does. The
+reference moves at a limited speed from where the vehicle is, so flying needs far less (E5's 6 N
+push peaks at 0.26-0.6 m); beyond it the integral and the observer still act, at the 1 m rate."""
+
+
+def bounded_position(pos_ned_m: Vec3, ref_ned_m: Vec3, max_error_m: float) -> Vec3:
+    """``pos_ned_m`` moved towards ``ref_ned_m`` until it is at most ``max_error_m`` from it."""
+    d = (pos_ned_m[0] - ref_ned_m[0], pos_ned_m[1] - ref_ned_m[1], pos_ned_m[2] - ref_ned_m[2])
+    n = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    if not n > max_error_m:
+        return pos_ned_m
+    k = max_error_m / n
+    return (ref_ned_m[0] + k * d[0], ref_ned_m[1] + k * d[1], ref_ned_m[2] + k * d[2])
 
 
 def propagate(pos_ned_m: Vec3, vel_ned_m_s: Vec3, specific_force_ned_m_s2: Vec3 | None, gravity_m_s2: float,
@@ -121,6 +137,7 @@ class OffboardController:
     guard: SetpointGuard
     estimate_thrust: bool = True
     period_s: float = 0.01
+    max_error_m: float = MAX_POSITION_ERROR_M
 
     def __post_init__(self) -> None:
         self.differentiator = VelocityDifferentiator()
@@ -187,6 +204,7 @@ class OffboardController:
             self.acceleration_source = "differentiated velocity"
         pos, vel = propagate(state.pos_ned_m, state.vel_ned_m_s, sf_ned, self.vehicle.gravity_m_s2,
                              min(max(t - state.t_pos, 0.0), MAX_PROPAGATION_S))
+        pos = bounded_position(pos, ref.pos_ned_m, self.max_error_m)
         meas = PositionMeasurement(pos, vel, state.q, sf_ned)
         att = self.loop.update(meas, ref, dt_s)
         estimate = self.loop.controller.estimate_n

@@ -52,7 +52,9 @@ COLUMNS = (
 )
 """t: vehicle clock [s]; wall: seconds since the flight started; step: mission step index;
 offboard: the autopilot flies our setpoints (1/0); streaming: a setpoint was sent this tick;
-positions NED [m]; *_ref the reference; q* the vehicle's attitude, q*_d and p_d.. the setpoint
+positions NED [m], in the frame the flight began in (the autopilot's estimate less the estimator
+resets found: companion/link/resets.py; the estimate itself is in traffic.tlog); *_ref the reference;
+q* the vehicle's attitude, q*_d and p_d.. the setpoint
 (rates in rad/s); thrust_n the controller's thrust [N], thrust the normalised value sent;
 f* the controller's force [N]; hf* the force-disturbance estimate [N]; thrust_max_n the scale in
 use, thrust_max_est_n its online estimate [N]; t_pos: the vehicle time the position was measured at
@@ -106,6 +108,8 @@ class SegmentStats:
     peak_tilt_deg: float = 0.0
     force_estimate_n: tuple[float, float, float] = (math.nan, math.nan, math.nan)
     thrust_max_est_n: float = math.nan
+    position_resets: int = 0
+    """estimator resets found during the step (re-anchored: companion/link/resets.py)"""
     ok: bool = True
     note: str = ""
 
@@ -322,6 +326,10 @@ def summary_markdown(data: dict) -> str:
         *([f"- parameters NOT put back: {data['params_not_restored']}"] if data.get("params_not_restored") else []),
         *([f"- parameters put back: {data['params_restored']}"] if data.get("params_restored") else []),
         *([f"- parameters kept (the mission's keep): {data['params_kept']}"] if data.get("params_kept") else []),
+        *(["- estimator resets (re-anchored, position jumps the vehicle did not make): "
+           + "; ".join(f"{math.hypot(*r['shift_ned_m']):.2f} m at t={r['t']:.2f} s "
+                       f"({'announced' if r['announced'] else 'not announced'})" for r in data["position_resets"])]
+          if data.get("position_resets") else []),
         "",
         "Times and durations are vehicle seconds (the autopilot's clock), not wall time.",
         "",

@@ -31,6 +31,7 @@ from companion.control.params import PositionGains
 from companion.control.vector import clip_norm
 from companion.link import LinkError, VehicleLink, open_link
 from companion.link.state import LANDED_IN_AIR
+from companion.link.resets import UNSTABLE_RESETS, UNSTABLE_WINDOW_S, ResetBound
 from companion.mavlink.signing import fingerprint
 from companion.mission import Mission
 
@@ -169,6 +170,10 @@ class Flight:
         self.preflight: dict = {}
         self.failure: str | None = None
         self._breach: str | None = None
+        self._resets_seen = 0
+        self._announcements_seen = 0
+        self._unstable: str | None = None
+        """why the position estimate is not to be flown on (resets too often), or None"""
 
     @property
     def stale(self) -> bool:
@@ -329,6 +334,7 @@ class Flight:
             grid.ticked(tick_wall, clock.now(tick_wall), state.t)
             t_next = grid.t_next
             tick, sent = None, False
+            self._note_resets()
             if self.engaged and self.expect_offboard and self._breach is None and not self.stale:
                 self.watch, breach = supervisor.judge_breach(self.watch, self._volume_breach())
                 if breach:  # no setpoint after it: the mission ends, hold then land (until())
@@ -364,6 +370,26 @@ class Flight:
             if health is not None:
                 self.link.take_rx_lag_max()
                 self.recorder.health(health)
+
+    def _note_resets(self) -> None:
+        """Log each estimator reset the link found (link/resets.py), count it in its segment, and
+        judge whether the estimate still is one to fly on."""
+        det = self.link.state.resets
+        for reset in det.resets[self._resets_seen:]:
+            n, e, d = reset.shift_ned_m
+            self.log(f"estimator reset{' (announced)' if reset.announced else ''}: the position "
+                     f"estimate jumped {reset.size_m:.2f} m (N {n:+.2f}, E {e:+.2f}, D {d:+.2f}) at "
+                     f"t={reset.t_s:.2f} s: re-anchored, the vehicle holds where it was")
+            if self.recorder.segments:
+                self.recorder.segments[-1].position_resets += 1
+        # an announced reset found after it was taken as unannounced is relabelled, not added
+        self._resets_seen = len(det.resets)
+        if det.announcements > self._announcements_seen:
+            self._announcements_seen = det.announcements
+            self.log(f"the autopilot announced an estimator reset (ODOMETRY reset_counter {det.counter})")
+        if self._unstable is None and det.unstable(self.link.state.t):
+            self._unstable = (f"position estimate reset {UNSTABLE_RESETS} times within {UNSTABLE_WINDOW_S:g} s: "
+                              "not flown on")
 
     def _send_debug(self, tick: Tick, t: float) -> None:
         """The force estimate, the commanded force and the tracking error to the ground station
@@ -402,8 +428,10 @@ class Flight:
             sp = self._setpoint
             if sp is None or not self.engaged or self.stale:
                 continue
-            if isinstance(sp, PositionTarget):
-                self.link.send_position_target(sp.pos_ned_m, sp.vel_ned_m_s, sp.accel_ned_m_s2, sp.yaw_rad)
+            if isinstance(sp, PositionTarget):  # in the autopilot's frame: its estimate, resets and all
+                o = self.link.state.resets.offset_ned_m
+                pos = (sp.pos_ned_m[0] + o[0], sp.pos_ned_m[1] + o[1], sp.pos_ned_m[2] + o[2])
+                self.link.send_position_target(pos, sp.vel_ned_m_s, sp.accel_ned_m_s2, sp.yaw_rad)
             else:
                 self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust, self.output.type_mask)
             self.sent += 1
@@ -444,6 +472,8 @@ class Flight:
                 raise MissionAbort(why)
             if self._breach is not None:
                 raise MissionAbort(self._breach)
+            if self._unstable is not None and self.expect_offboard:
+                raise MissionAbort(self._unstable)
             if cond():
                 return
             if st.t - start > timeout_v or now - wall_start > wall_limit:
@@ -550,6 +580,7 @@ class Flight:
             raise MissionAbort("no thrust scale: set [thrust] thrust_max_n or hover_throttle in the mission")
         t_max, source = found
         self.log(f"thrust scale {t_max:.2f} N at full throttle ({source})")
+        link.state.resets.bound = ResetBound.for_vehicle(t_max, m.vehicle.mass_kg, m.vehicle.gravity_m_s2)
         if link.state.autopilot == "ardupilot":
             keep = self.opt.ardupilot_shaping
             await prepare_ardupilot(self.params, self.log,
@@ -674,6 +705,10 @@ class Flight:
             "cpu_s": time.process_time() - self._cpu0, "wall_s": time.monotonic() - self._wall0,
             "link_stats": dict(getattr(self.link, "stats", {})),
             "older_samples": self.link.state.older_samples,
+            "position_resets": [{"t": r.t_s, "shift_ned_m": r.shift_ned_m, "announced": r.announced}
+                                for r in self.link.state.resets.resets],
+            "reset_announcements": self.link.state.resets.announcements,
+            "position_offset_ned_m": self.link.state.resets.offset_ned_m,
             "acceleration_source": self.control.acceleration_source if self.control else None,
             "skipped_steps": list(self.skipped),
             "params_not_restored": params["not_restored"], "params_restored": params["restored"],

@@ -57,6 +57,7 @@ STREAM_RATES_HZ = {
     mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 60.0,
     mavlink.MAVLINK_MSG_ID_HIGHRES_IMU: 100.0,
     mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 5.0,
+    mavlink.MAVLINK_MSG_ID_ODOMETRY: 30.0,  # for its reset_counter: estimator resets announced
 }
 
 
@@ -277,6 +278,11 @@ class PymavlinkLink(VehicleLink):
             if a is not None and self._valid(st.set_position(
                     (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), a.t_s, wall)):
                 self._observe(a, wall)
+        elif kind == "ODOMETRY":
+            # only its reset counter: the position itself comes from LOCAL_POSITION_NED (one stream)
+            a = self._admit(msg.time_usec * 1e-6, wall)
+            if a is not None and msg.frame_id in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_FRD):
+                st.set_reset_counter(msg.reset_counter, a.t_s)
         elif kind == "HIGHRES_IMU":
             if msg.fields_updated & 0x7 == 0x7:
                 self._highres_seen = True

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 
+from .resets import PositionReset, ResetDetector
+
 __all__ = ["VehicleState", "LANDED_ON_GROUND", "LANDED_IN_AIR", "MAX_POSITION_M", "MAX_SPEED_M_S",
            "MAX_RATE_RAD_S", "MAX_SPECIFIC_FORCE_M_S2"]
 
@@ -57,6 +59,10 @@ class VehicleState:
     wall_heartbeat: float = -math.inf
 
     pos_ned_m: Vec3 = (0.0, 0.0, 0.0)
+    """the position in the frame the flight began in: the autopilot's estimate less the estimator
+    resets found (:mod:`companion.link.resets`); what the controller and the mission fly"""
+    pos_estimate_ned_m: Vec3 = (0.0, 0.0, 0.0)
+    """the autopilot's estimate as reported (LOCAL_POSITION_NED)"""
     vel_ned_m_s: Vec3 = (0.0, 0.0, 0.0)
     t_pos: float = -math.inf
     wall_pos: float = -math.inf
@@ -76,6 +82,8 @@ class VehicleState:
     texts_seen: int = 0
     """how many texts have arrived in all (statustexts keeps the last 100)"""
     params: dict[str, float] = field(default_factory=dict)
+    resets: ResetDetector = field(default_factory=ResetDetector)
+    """estimator resets found in the position stream and the autopilot's reset counter"""
 
     # --- updates: each refuses (returns False, changes nothing) what cannot be a real sample ---
 
@@ -132,9 +140,21 @@ class VehicleState:
             return False
         if self._older(t, self.t_pos):
             return True
-        self.pos_ned_m, self.vel_ned_m_s = pos_ned_m, vel_ned_m_s
+        self.resets.observe(t, pos_ned_m, vel_ned_m_s)
+        self.pos_estimate_ned_m, self.vel_ned_m_s = pos_ned_m, vel_ned_m_s
+        self._anchor()
         self.t_pos, self.wall_pos = t, wall
         return True
+
+    def set_reset_counter(self, counter: int, t: float) -> PositionReset | None:
+        """The autopilot's estimator reset counter (ODOMETRY ``reset_counter``) at vehicle time ``t``."""
+        reset = self.resets.announce(counter, t)
+        self._anchor()
+        return reset
+
+    def _anchor(self) -> None:
+        p, o = self.pos_estimate_ned_m, self.resets.offset_ned_m
+        self.pos_ned_m = (p[0] - o[0], p[1] - o[1], p[2] - o[2])
 
     def set_imu(self, specific_force_body_m_s2: Vec3, t: float, wall: float) -> bool:
         if not (_within(specific_force_body_m_s2, MAX_SPECIFIC_FORCE_M_S2) and math.isfinite(t) and t >= 0.0):

@@ -616,6 +616,9 @@ class Autopilot:
             self._reject(reason)
             return reason
         self._note_setpoint(sender)
+        o = self.vehicle.estimate_offset_ned_m  # sent in the reported estimate's frame
+        if any(o) and not all(math.isnan(c) for c in target.pos_ned_m):
+            target = dataclasses.replace(target, pos_ned_m=tuple(c - oc for c, oc in zip(target.pos_ned_m, o)))
         if self.offboard_target is None and self.mode == Mode.OFFBOARD:
             self._start_trajectory(from_mode_reference=False)
         self.offboard_target = target

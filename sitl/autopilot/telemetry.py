@@ -4,7 +4,8 @@ The one place where the vehicle's state becomes wire messages (pymavlink, MAVLin
 ``ardupilotmega`` dialect, which includes ``common``). Timestamps are the simulated clock.
 Units and frames are MAVLink's, which are ours: NED, FRD, scalar-first body-to-NED quaternions.
 What the telemetry reports is what an autopilot would know: the tracking system's position
-and differenced velocity, the onboard attitude estimate and bias-corrected rates, the IMU.
+(moved by any injected estimator reset) and differenced velocity, the onboard attitude estimate
+and bias-corrected rates, the IMU.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
 from companion.mavlink.boot_time import BOOT_MS_MODULUS, unwrap_boot_s
+from companion.control.vector import Vec3
 
 from ..plant.geo import GeoOrigin
 from .logic import Autopilot, custom_mode
@@ -66,6 +68,11 @@ DEFAULT_RATES_HZ: dict[int, float] = {
 
 def _f(x: object) -> float:
     return float(x)  # type: ignore[arg-type]
+
+
+def _estimate(p: Vec3, offset: Vec3) -> tuple[float, float, float]:
+    """The reported position estimate: the tracked position plus the injected resets' offset."""
+    return (_f(p[0]) + offset[0], _f(p[1]) + offset[1], _f(p[2]) + offset[2])
 
 
 class Telemetry:
@@ -161,7 +168,7 @@ class Telemetry:
         if self.ap.vehicle.position_age_s > POSITION_STALE_S or not self.ap.has_position:
             return None
         ms = self.ap.vehicle.tracked
-        p, vel = ms.pos_ned_m, ms.vel_ned_m_s
+        p, vel = _estimate(ms.pos_ned_m, self.ap.vehicle.estimate_offset_ned_m), ms.vel_ned_m_s
         return self.mav.local_position_ned_encode(
             self.time_boot_ms, _f(p[0]), _f(p[1]), _f(p[2]), _f(vel[0]), _f(vel[1]), _f(vel[2])
         )
@@ -172,11 +179,12 @@ class Telemetry:
         q, w = v.estimator.q, v.omega_est
         vb = quat.rotate_inverse(q, ms.vel_ned_m_s)  # ODOMETRY velocity is in the child frame
         nan21 = [math.nan] + [0.0] * 20
-        p = ms.pos_ned_m
+        p = _estimate(ms.pos_ned_m, v.estimate_offset_ned_m)
         return self.mav.odometry_encode(
             self.time_usec, mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_FRD,
-            _f(p[0]), _f(p[1]), _f(p[2]), [_f(c) for c in q], _f(vb[0]), _f(vb[1]), _f(vb[2]),
-            _f(w[0]), _f(w[1]), _f(w[2]), nan21, nan21, 0, mavlink.MAV_ESTIMATOR_TYPE_VISION, 100,
+            p[0], p[1], p[2], [_f(c) for c in q], _f(vb[0]), _f(vb[1]), _f(vb[2]),
+            _f(w[0]), _f(w[1]), _f(w[2]), nan21, nan21, v.estimator_resets & 0xFF,
+            mavlink.MAV_ESTIMATOR_TYPE_VISION, 100,
         )
 
     def highres_imu(self) -> mavlink.MAVLink_message:
@@ -196,8 +204,8 @@ class Telemetry:
     def global_position_int(self) -> mavlink.MAVLink_message:
         ap = self.ap
         ms = ap.vehicle.tracked
-        p, vel = ms.pos_ned_m, ms.vel_ned_m_s
-        lat, lon, alt = self.origin.to_global(_f(p[0]), _f(p[1]), _f(p[2]))
+        p, vel = _estimate(ms.pos_ned_m, ap.vehicle.estimate_offset_ned_m), ms.vel_ned_m_s
+        lat, lon, alt = self.origin.to_global(p[0], p[1], p[2])
         yaw = _f(quat.to_euler(ap.vehicle.estimator.q)[2])
         hdg = int(round(math.degrees(yaw) % 360.0 * 100)) % 36000
         return self.mav.global_position_int_encode(
@@ -206,8 +214,9 @@ class Telemetry:
         )
 
     def gps_raw_int(self) -> mavlink.MAVLink_message:
-        p = self.ap.vehicle.tracked.pos_ned_m
-        lat, lon, alt = self.origin.to_global(_f(p[0]), _f(p[1]), _f(p[2]))
+        v = self.ap.vehicle
+        p = _estimate(v.tracked.pos_ned_m, v.estimate_offset_ned_m)
+        lat, lon, alt = self.origin.to_global(p[0], p[1], p[2])
         return self.mav.gps_raw_int_encode(self.time_usec, 3, lat, lon, alt, 80, 120, 0, 65535, 16)
 
     def home_position(self) -> mavlink.MAVLink_message:

@@ -28,7 +28,7 @@ from companion.mavlink.params import PLANT_COMPID
 from companion.mavlink.signing_options import signing_key
 from sitl.plant.geo import GeoOrigin
 from sitl.plant.nav_sensors import NavSensorParams
-from sitl.plant.parameters import build_plant_parameters
+from sitl.plant.parameters import ESTIMATE_ONLY, build_plant_parameters
 from sitl.plant.scenario import Scenario
 
 from .airframe import ardupilot_parameters, px4_parameters
@@ -89,7 +89,7 @@ class Session:
         self.keep_workdir = keep_workdir
         self.workdir = Path(tempfile.mkdtemp(prefix=f"ismdo-{firmware}-"))
         self.world = world = FirmwareWorld(scenario, seed, origin)
-        table = build_plant_parameters(world.vehicle, lambda text: None)
+        table = build_plant_parameters(world.vehicle, lambda text: None, ESTIMATE_ONLY)
         for name, value in params or []:
             reason = table.set(name, value)
             if reason is not None:

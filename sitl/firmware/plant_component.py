@@ -26,13 +26,13 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from companion.control import quaternion as quat
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID, param_name
 from sitl.plant.geo import GeoOrigin
-from sitl.plant.parameters import SIM_ROWS, THRUST_MAX_ROW, ParamTable, build_plant_parameters
+from sitl.plant.parameters import ESTIMATE_ONLY, SIM_ROWS, THRUST_MAX_ROW, ParamTable, build_plant_parameters
 from sitl.plant.sensors import MocapSample
 from sitl.plant.vehicle import SimVehicle
 
 __all__ = ["PlantComponent", "estimator_origin"]
 
-PLANT_ROWS = (THRUST_MAX_ROW, *SIM_ROWS)
+PLANT_ROWS = (THRUST_MAX_ROW, *(r for r in SIM_ROWS if r.name not in ESTIMATE_ONLY))
 SIM_NAMES = frozenset(row.name for row in PLANT_ROWS)
 PROBE_TRIES = 3
 PROBE_INTERVAL_S = 0.5
@@ -173,7 +173,7 @@ class PlantComponent:
                 out.extend(mav.param_request_read_encode(self.sysid, 1, row.name.encode(), -1).pack(mav)
                            for row in PLANT_ROWS if row.name not in self.shadowed)
             else:
-                self.params = build_plant_parameters(self.vehicle, self._say, frozenset(self.shadowed))
+                self.params = build_plant_parameters(self.vehicle, self._say, frozenset(self.shadowed) | ESTIMATE_ONLY)
         if not self.origin_set and self.firmware_seen and t_s >= self._next_origin_s:
             self._next_origin_s = t_s + ORIGIN_INTERVAL_S
             o = self.origin

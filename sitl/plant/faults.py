@@ -2,7 +2,9 @@
 
 Injected (by parameter, for a given number of seconds from now): a tracking-system dropout (no
 position or attitude samples), a frozen IMU (the same reading, bit for bit), and an IMU that
-reads NaN. The firmware checks every IMU sample: a non-finite or out-of-range one is replaced by
+reads NaN; and a reset of the position estimate (the reported position moves by a given vector
+at once, as an EKF's does after a GPS glitch — announced by the reset counter or not). The
+firmware checks every IMU sample: a non-finite or out-of-range one is replaced by
 the last good one; a reading repeated bit for bit is stuck (a real IMU's noise never repeats);
 bad or stuck for ``fault_after_s`` → the IMU is declared failed (latched until disarmed) and the
 attitude estimate falls back to the tracking system alone. Position is valid while tracking
@@ -30,6 +32,18 @@ class SensorFaults:
     mocap_dropout: tuple[float, float] = (math.inf, math.inf)
     imu_frozen: tuple[float, float] = (math.inf, math.inf)
     imu_nan: tuple[float, float] = (math.inf, math.inf)
+    position_offset_ned_m: Vec3 = (0.0, 0.0, 0.0)
+    """what the reported position estimate adds to the tracked position [m, NED]: the sum of the
+    estimator resets injected (the vehicle itself does not move)"""
+    position_resets: int = 0
+    """estimator resets announced (ODOMETRY's reset_counter); an unannounced jump is not counted"""
+
+    def reset_position(self, shift_ned_m: Vec3, announced: bool) -> None:
+        """The position estimate jumps by ``shift_ned_m`` now; ``announced``: the reset counter counts it."""
+        o = self.position_offset_ned_m
+        self.position_offset_ned_m = (o[0] + shift_ned_m[0], o[1] + shift_ned_m[1], o[2] + shift_ned_m[2])
+        if announced:
+            self.position_resets += 1
 
     @staticmethod
     def active(window: tuple[float, float], t: float) -> bool:

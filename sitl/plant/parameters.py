@@ -20,6 +20,7 @@ from typing import Any, Callable, Iterator
 from .vehicle import SimVehicle
 
 __all__ = ["Row", "Param", "ParamTable", "PlantBinding", "SIM_ROWS", "THRUST_MAX_ROW", "build_plant_parameters",
+           "ESTIMATE_ONLY",
            "V", "E", "D", "XYZ"]
 
 @dataclass(frozen=True)
@@ -80,12 +81,20 @@ SIM_ROWS: tuple[Row, ...] = (
     Row("SIM_MOCAP_DROP", "fault.mocap_dropout", 0.0, 3600.0, "s", "tracking dropout from now, for", fault=True),
     Row("SIM_IMU_FREEZE", "fault.imu_frozen", 0.0, 3600.0, "s", "IMU frozen from now, for", fault=True),
     Row("SIM_IMU_NAN", "fault.imu_nan", 0.0, 3600.0, "s", "IMU reads NaN from now, for", fault=True),
+    *(Row(f"SIM_POS_{kind}_{axis}", f"fault.position_{kind.lower()}", -100.0, 100.0, "m",
+          f"position estimate reset now by this much {name}{how}", components=c, fault=True)
+      for kind, how in (("RESET", ", announced (reset counter)"), ("JUMP", ", not announced"))
+      for axis, name, c in (("N", "north", V), ("E", "east", E), ("D", "down", D))),
     Row("SIM_STATE_NAN", "fault.state_nan", 0.0, 1.0, "",
         "1: the plant's state turns NaN (tests the numerical-fault failsafe)", integer=True,
         fault=True),
     Row("SIM_SEED", "derived.seed", 0.0, 2.0**32 - 1, "", "random seed of this vehicle", read_only=True),
 )
 """the simulation's own parameters: what the plant and its sensors do, whoever flies them"""
+
+ESTIMATE_ONLY = frozenset(r.name for r in SIM_ROWS if r.field.startswith("fault.position_"))
+"""rows that change the bundled autopilot's reported estimate, which a real autopilot's firmware
+flying the plant computes itself: not served there"""
 
 
 @dataclass
@@ -265,6 +274,14 @@ class PlantBinding:
                     self.say("Fault injected: NaN plant state")
                     s = v.plant.state
                     v.plant.state = s._replace(vel_ned_m_s=(math.nan, s.vel_ned_m_s[1], s.vel_ned_m_s[2]))
+                return
+            if window in ("position_reset", "position_jump"):
+                if x:
+                    shift = tuple(0.0 if k is None else k * x for k in row.components or XYZ)
+                    announced = window == "position_reset"
+                    v.faults.reset_position(shift, announced)  # type: ignore[arg-type]
+                    self.say(f"Fault injected: position estimate reset by {x:g} m "
+                             f"({'announced' if announced else 'not announced'})")
                 return
             setattr(v.faults, window, (v.t, v.t + x) if x > 0 else (math.inf, math.inf))
             if x > 0:

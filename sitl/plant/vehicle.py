@@ -103,6 +103,18 @@ class SimVehicle:
         return self.imu_monitor.failed if self.imu_monitor is not None else None
 
     @property
+    def estimate_offset_ned_m(self) -> Vec3:
+        """What the reported position estimate adds to the tracked position (injected estimator
+        resets, :class:`SensorFaults`); the vehicle's own loops fly the tracked one, re-anchored
+        as a real autopilot's are after its own reset."""
+        return self.faults.position_offset_ned_m if self.faults is not None else ZERO3
+
+    @property
+    def estimator_resets(self) -> int:
+        """Position-estimate resets announced so far (ODOMETRY's reset_counter)."""
+        return self.faults.position_resets if self.faults is not None else 0
+
+    @property
     def position_age_s(self) -> float:
         """Time since the newest tracking sample was taken."""
         return self.t - self.mocap.latest.time_s
