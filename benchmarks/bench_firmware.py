@@ -27,6 +27,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from companion.control.names import CONTROLLER_LABELS  # noqa: E402
 from companion.plots import load_timeseries  # noqa: E402
 from companion.vehicle_process import FirmwareVehicle  # noqa: E402
 from sitl.firmware.builds import arducopter_binary, px4_build  # noqa: E402
@@ -38,7 +39,7 @@ EXPERIMENTS = {
     "square": ("missions/square_wind.toml", ("square",)),
 }
 CONTROLLERS = ("ism_do", "pd_do", "pid", "autopilot")
-LABELS = {"ism_do": "ISM+DO", "pd_do": "PD+DO", "pid": "PID", "autopilot": "autopilot's own",
+LABELS = {**CONTROLLER_LABELS, "autopilot": "autopilot's own",
           "ism_do_shaped": "ISM+DO, ArduCopter's input shaping kept"}
 TILT_PARAM = {"px4": "MPC_TILTMAX_AIR", "ardupilot": "ATC_ANGLE_MAX"}
 FAILURES: list[str] = []

@@ -24,6 +24,7 @@ from typing import NamedTuple
 
 from . import quaternion as quat
 from .jit import jitable
+from .names import controllers_for
 from .observers import (
     IncrementalConst,
     IncrementalState,
@@ -68,9 +69,9 @@ __all__ = [
     "AttitudeController",
 ]
 
-ATTITUDE_CONTROLLERS = ("pd", "pd_do", "ism_do", "indi")
-PD, PD_DO, ISM_DO, INDI = 0, 1, 2, 3
-"""``AttitudeConst.kind``: the index in ATTITUDE_CONTROLLERS."""
+ATTITUDE_CONTROLLERS = controllers_for("attitude")
+PD, PD_DO, ISM_DO, INDI = (ATTITUDE_CONTROLLERS.index(n) for n in ("pd", "pd_do", "ism_do", "indi"))
+"""``AttitudeConst.kind``: the index in ATTITUDE_CONTROLLERS (the registry, companion/control/names.py)."""
 
 
 @jitable

@@ -45,6 +45,7 @@ import numpy as np
 
 from .attitude import _integrate_with_reset
 from .jit import jitable
+from .names import controllers_for
 from .observers import (
     ForceObserverConst,
     ForceObserverState,
@@ -83,9 +84,9 @@ __all__ = [
     "PositionController",
 ]
 
-POSITION_CONTROLLERS = ("pid", "aibc", "pd_do", "ism_do", "indi")
-PID, AIBC, PD_DO, ISM_DO, INDI = 0, 1, 2, 3, 4
-"""``PositionConst.kind``: the index in POSITION_CONTROLLERS."""
+POSITION_CONTROLLERS = controllers_for("position")
+PID, AIBC, PD_DO, ISM_DO, INDI = (POSITION_CONTROLLERS.index(n) for n in ("pid", "aibc", "pd_do", "ism_do", "indi"))
+"""``PositionConst.kind``: the index in POSITION_CONTROLLERS (the registry, companion/control/names.py)."""
 
 
 def aibc_coefficients(omega_c_rad_s: float) -> tuple[float, float, float]:

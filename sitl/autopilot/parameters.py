@@ -22,6 +22,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
+from companion.control.names import att_ctrl_kinds, controller_label
+
 from ..plant.parameters import (D, SIM_ROWS, THRUST_MAX_ROW, XYZ, Param, ParamTable, PlantBinding, Row,
                                 bind_rows)
 from .logic import Autopilot, Severity
@@ -29,7 +31,8 @@ from .logic import Autopilot, Severity
 __all__ = ["Row", "Param", "ParamTable", "build_parameters", "CONTROLLER_ROWS", "markdown_table", "PX4_ROWS",
            "ARDUPILOT_ROWS", "COMMON_ROWS", "ATTITUDE_KINDS"]
 
-ATTITUDE_KINDS = ("pd", "pd_do", "ism_do")
+ATTITUDE_KINDS = att_ctrl_kinds()
+"""Attitude controller names by their ATT_CTRL value (the registry, companion/control/names.py)."""
 
 
 
@@ -62,7 +65,9 @@ ARDUPILOT_ROWS: tuple[Row, ...] = (
 )
 
 CONTROLLER_ROWS: tuple[Row, ...] = (
-    Row("ATT_CTRL", "controller", 0.0, 2.0, "", "attitude controller: 0 PD, 1 PD+DO, 2 ISM+DO", integer=True),
+    Row("ATT_CTRL", "controller", 0.0, float(len(ATTITUDE_KINDS) - 1), "",
+        "attitude controller: " + ", ".join(f"{i} {controller_label(k)}" for i, k in enumerate(ATTITUDE_KINDS)),
+        integer=True),
     Row("ATT_W_C", "scenario.attitude.omega_c_rad_s", 6.0, 20.0, "rad/s", "attitude omega_c"),
     Row("ATT_GAMMA", "scenario.attitude.observer_gain_rad_s", 1.0, 40.0, "rad/s", "torque observer Gamma_a",
         components=XYZ),

@@ -137,14 +137,10 @@ def draw_figure(result: ExperimentResult, out_dir: Path) -> Path:
                             ("vertical RMS error [m]", "rms_vertical_error_m"),
                             ("rate command noise, RMS |omega_d| [deg/s]", "rms_rate_cmd_deg_s")):
             vals = result.values(name, seg)
-            groups[title] = {f"{_short(p)}/{_short(a)}": v for (p, a), v in vals.items()}
+            groups[title] = {f"{controller_label(p)}/{controller_label(a)}": v for (p, a), v in vals.items()}
         n = len(next(iter(vals.values())))
         return plots.boxplot_figure(groups, f"{sc.description} - {n} seeds per combination", path)
     return plots.draw(list(result.logs.values()), path)
-
-
-def _short(name: str) -> str:
-    return controller_label(name)
 
 
 def summary_table(result: ExperimentResult) -> str:
@@ -158,7 +154,7 @@ def summary_table(result: ExperimentResult) -> str:
         combos.setdefault((case.position, case.attitude), []).append(segs)
     for (p, a), runs in combos.items():
         for i, seg in enumerate(runs[0]):
-            cells = [f"{_short(p)} / {_short(a)}", seg.segment]
+            cells = [f"{controller_label(p)} / {controller_label(a)}", seg.segment]
             for name in SUMMARY_FIELDS:
                 v = float(np.median([getattr(r[i], name) for r in runs]))
                 cells.append("n/a" if math.isnan(v) else f"{v:.3g}")

@@ -17,14 +17,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .metrics import euler_deg, rate_cmd_deg_s, tilt_deg  # noqa: E402
-from companion.control.names import controller_label  # noqa: E402
+from companion.control.names import controller_label, controller_style  # noqa: E402
 
 from .simulation import FlightLog  # noqa: E402
 
 __all__ = ["FIGURES", "draw", "label", "boxplot_figure"]
 
-COLORS = {"pid": "tab:gray", "aibc": "tab:orange", "pd_do": "tab:blue", "ism_do": "tab:red", "indi": "tab:green"}
-STYLES = {"ism_do": "-", "pd_do": "--", "pd": ":", "indi": "-."}
 
 
 def label(log: FlightLog) -> str:
@@ -32,7 +30,7 @@ def label(log: FlightLog) -> str:
 
 
 def _style(log: FlightLog) -> dict[str, object]:
-    return {"color": COLORS[log.position], "linestyle": STYLES.get(log.attitude, "-"), "lw": 1.2}
+    return {**controller_style(log.position, log.attitude), "lw": 1.2}
 
 
 def _shade_forces(ax: plt.Axes, log: FlightLog) -> None:

@@ -29,11 +29,15 @@ Cases that differ only in their seed run as one batch of vehicles (the simulator
 bit-identical to one-vehicle runs). Results are appended to ``OUT/<name>/cases.csv`` as batches
 finish: one row per case with its parameters, status and metrics. A re-run skips the cases
 already in the table (``--retry-failed`` re-runs the failed ones); a failed case is recorded with
-its error, never dropped. Execution: on the compiled kernel (numba installed), one batch after
-another in this process, each batch's vehicles in parallel on every core; on the objects engine
-(``SITL_ENGINE=objects``, or without numba), local processes (``--jobs``, default all cores); or
-any Dask distributed scheduler (``--scheduler ADDRESS``). The same seeds give the same numbers
-every way.
+its error, never dropped. The engine (``--engine``; default ``$SITL_ENGINE``, else compiled when
+numba is installed) is part of a case: it has a column in the table and is in the case's key, so
+one table can hold both engines' numbers side by side but never mixes them, and it travels with
+each batch to whatever worker flies it. Execution: on the compiled kernel, one batch after another
+in this process, each batch's vehicles in parallel on every core; on the objects engine, local
+processes (``--jobs``, default all cores); or any Dask distributed scheduler (``--scheduler
+ADDRESS``: a one-line error when it does not answer within ``--connect-timeout`` or has no worker
+within ``--worker-timeout``, a line a second while waiting). The same seeds on the same engine
+give the same numbers every way.
 """
 
 from __future__ import annotations
@@ -63,10 +67,10 @@ from companion.control.position import POSITION_CONTROLLERS
 
 from ..plant.scenario import Scenario, Segment, load_scenario
 from .metrics import SegmentMetrics, segment_metrics
-from .simulation import default_engine, simulate
+from .simulation import ENGINES, default_engine, simulate
 
 __all__ = ["SweepSpec", "Task", "Member", "stack_gains", "NAMED_PARAMETERS", "load_sweep", "apply_parameters",
-           "plan", "fly_batch", "run_task", "run_sweep", "main"]
+           "plan", "fly_batch", "run_task", "run_sweep", "connect_dask", "SchedulerError", "main"]
 
 SWEEP_DIR = Path(__file__).parent / "sweeps"
 METRICS = tuple(f.name for f in dataclasses.fields(SegmentMetrics) if f.name != "segment")
@@ -281,6 +285,9 @@ class Task:
     attitude: str
     segment: str
     metrics: tuple[str, ...]
+    engine: str
+    """the simulator that flies it (:data:`~sitl.lab.simulation.ENGINES`): carried with the task, so a
+    remote worker flies what the client asked for whatever its own environment says"""
 
     @property
     def seeds(self) -> tuple[int, ...]:
@@ -321,13 +328,17 @@ def stack_gains(members: Sequence[Member]) -> Scenario:
     return first.with_changes(**changes) if changes else first
 
 
-def case_id(params: dict[str, float], position: str, attitude: str, seed: int) -> str:
-    key = json.dumps({"p": params, "pos": position, "att": attitude, "seed": seed}, sort_keys=True)
+def case_id(params: dict[str, float], position: str, attitude: str, engine: str, seed: int) -> str:
+    """A case's key in the table: its parameters, controllers, engine and seed (two engines' numbers
+    for one case are two cases, never one row standing for both)."""
+    key = json.dumps({"p": params, "pos": position, "att": attitude, "engine": engine, "seed": seed}, sort_keys=True)
     return hashlib.sha1(key.encode()).hexdigest()[:16]
 
 
-def plan(spec: SweepSpec, skip: set[str] = frozenset()) -> tuple[list[Task], int]:  # type: ignore[assignment]
-    """Tasks for every case not in ``skip``, and the total number of cases.
+def plan(spec: SweepSpec, skip: set[str] = frozenset(),  # type: ignore[assignment]
+         engine: str | None = None) -> tuple[list[Task], int]:
+    """Tasks for every case not in ``skip`` flown on ``engine`` (:func:`default_engine` when None),
+    and the total number of cases.
 
     Cases that differ only in seed, or only in seed and gains, share a task (one batch of
     vehicles) of at most ``batch_size`` vehicles.
@@ -336,6 +347,7 @@ def plan(spec: SweepSpec, skip: set[str] = frozenset()) -> tuple[list[Task], int
     for params in spec.parameter_sets():
         key = json.dumps({k: v for k, v in params.items() if not is_gain(k)}, sort_keys=True)
         groups.setdefault(key, []).append((params, apply_parameters(spec.scenario, params)))
+    engine = engine or default_engine()
     tasks: list[Task] = []
     total = 0
     for att in spec.attitude:
@@ -345,22 +357,22 @@ def plan(spec: SweepSpec, skip: set[str] = frozenset()) -> tuple[list[Task], int
                 size = 0
                 for params, sc in group:
                     total += len(spec.seeds)
-                    todo = [s for s in spec.seeds if case_id(params, pos, att, s) not in skip]
+                    todo = [s for s in spec.seeds if case_id(params, pos, att, engine, s) not in skip]
                     for i in range(0, len(todo), spec.batch_size):
                         chunk = tuple(todo[i:i + spec.batch_size])
                         if pending and size + len(chunk) > spec.batch_size:
-                            tasks.append(Task(tuple(pending), pos, att, spec.segment, spec.metrics))
+                            tasks.append(Task(tuple(pending), pos, att, spec.segment, spec.metrics, engine))
                             pending, size = [], 0
                         pending.append(Member(params, sc, chunk))
                         size += len(chunk)
                 if pending:
-                    tasks.append(Task(tuple(pending), pos, att, spec.segment, spec.metrics))
+                    tasks.append(Task(tuple(pending), pos, att, spec.segment, spec.metrics, engine))
     return tasks, total
 
 
 def _fly(scenario: Scenario, task: Task, members: Sequence[Member]) -> list[dict[str, Any]]:
     seeds = [s for m in members for s in m.seeds]
-    log = simulate(scenario, task.position, task.attitude, seeds if len(seeds) > 1 else seeds[0])
+    log = simulate(scenario, task.position, task.attitude, seeds if len(seeds) > 1 else seeds[0], engine=task.engine)
     seg = next((s for s in scenario.segments if s.name == task.segment),
                Segment("flight", 0.0, scenario.duration_s + 1e-9))
     rows = []
@@ -373,15 +385,16 @@ def _fly(scenario: Scenario, task: Task, members: Sequence[Member]) -> list[dict
             values = {k: getattr(metrics, k) for k in task.metrics}
             finite = all(math.isfinite(v) for k, v in values.items() if k != "settling_time_s")
             status = "ok" if finite and metrics.peak_error_m < 100.0 else "diverged"
-            rows.append({"case": case_id(m.params, task.position, task.attitude, seed), "position": task.position,
-                         "attitude": task.attitude, **m.params, "seed": seed, "status": status,
+            rows.append({"case": case_id(m.params, task.position, task.attitude, task.engine, seed),
+                         "position": task.position, "attitude": task.attitude, "engine": task.engine, **m.params,
+                         "seed": seed, "status": status,
                          "error": "" if status == "ok" else "non-finite or > 100 m error", **values})
     return rows
 
 
 def _failed(task: Task, m: Member, exc: Exception) -> list[dict[str, Any]]:
-    return [{"case": case_id(m.params, task.position, task.attitude, s), "position": task.position,
-             "attitude": task.attitude, **m.params, "seed": s, "status": "failed",
+    return [{"case": case_id(m.params, task.position, task.attitude, task.engine, s), "position": task.position,
+             "attitude": task.attitude, "engine": task.engine, **m.params, "seed": s, "status": "failed",
              "error": f"{type(exc).__name__}: {exc}"[:300], **{k: math.nan for k in task.metrics}}
             for s in m.seeds]
 
@@ -400,7 +413,7 @@ FLOAT_BELOW = 12
 
 def fly_batch(task: Task) -> list[dict[str, Any]]:
     """All members of ``task`` as one batch of vehicles (gains stacked); raises if the batch fails."""
-    if len(task.seeds) < FLOAT_BELOW and default_engine() == "objects":
+    if len(task.seeds) < FLOAT_BELOW and task.engine == "objects":
         return [r for m in task.members for s in m.seeds
                 for r in _fly(m.scenario, task, [Member(m.params, m.scenario, (s,))])]
     return _fly(stack_gains(task.members), task, task.members)
@@ -430,7 +443,7 @@ def run_task(task: Task) -> list[dict[str, Any]]:
 
 
 def _columns(spec: SweepSpec) -> list[str]:
-    return ["case", "position", "attitude", *spec.parameter_names, "seed", "status", "error", *spec.metrics,
+    return ["case", "position", "attitude", "engine", *spec.parameter_names, "seed", "status", "error", *spec.metrics,
             "wall_s"]
 
 
@@ -456,53 +469,115 @@ class _Later:
         return run_task(self.task)
 
 
-def default_jobs() -> int:
+def default_jobs(engine: str) -> int:
     """1 on the compiled kernel (each batch already runs on every core: more processes would only
     share the cores and load the kernel again), else one process per core."""
-    return 1 if default_engine() == "compiled" else os.cpu_count() or 1
+    return 1 if engine == "compiled" else os.cpu_count() or 1
 
 
-def _executor(jobs: int | None, scheduler: str | None) -> tuple[Submit, Completed, Callable[[], None]]:
-    """(submit, as_completed, close) for this process, local processes or a Dask scheduler."""
-    jobs = jobs or default_jobs()
-    if not scheduler and jobs == 1:
-        return _Later, iter, lambda: None
-    if scheduler:
-        from distributed import Client
+class SchedulerError(RuntimeError):
+    """The Dask scheduler cannot run the sweep: not reachable, or no worker came in time."""
+
+
+CONNECT_TIMEOUT_S = 10.0
+"""default wait for a Dask scheduler to answer (``--connect-timeout``)"""
+WORKER_TIMEOUT_S = 60.0
+"""default wait for a Dask scheduler's first worker (``--worker-timeout``)"""
+
+
+def connect_dask(address: str, connect_timeout_s: float = CONNECT_TIMEOUT_S,
+                 worker_timeout_s: float = WORKER_TIMEOUT_S, say: Callable[[str], None] | None = None) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``address`` with at least one worker.
+
+    Raises :class:`SchedulerError` (one line) when the scheduler does not answer within
+    ``connect_timeout_s`` or has no worker after ``worker_timeout_s``; ``say`` hears the waiting,
+    about once a second, so a cluster still starting its workers is not a silent hang.
+    """
+    from distributed import Client
+
+    try:
+        client = Client(address, timeout=connect_timeout_s)
+    except (OSError, TimeoutError, ValueError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise SchedulerError(f"no Dask scheduler answered at {address} within {connect_timeout_s:g} s "
+                             f"({type(exc).__name__}: {reason[:120]})") from None
+    t0 = time.monotonic()
+    while True:
+        waited = time.monotonic() - t0
+        try:
+            client.wait_for_workers(1, timeout=max(min(1.0, worker_timeout_s - waited), 0.01))
+        except TimeoutError:
+            waited = time.monotonic() - t0
+            if waited >= worker_timeout_s:
+                client.close()
+                raise SchedulerError(f"the Dask scheduler at {address} has no workers after {worker_timeout_s:g} s "
+                                     f"(start some: dask worker {address})") from None
+            if say:
+                say(f"waiting for a worker at {address}: {waited:.0f}/{worker_timeout_s:g} s")
+            continue
+        if say:
+            say(f"{len(client.scheduler_info()['workers'])} Dask workers at {address}")
+        return client
+
+
+def _executor(engine: str, jobs: int | None, client: Any) -> tuple[Submit, Completed, Callable[[], None]]:
+    """(submit, as_completed, close) for this process, local processes or a Dask client."""
+    jobs = jobs or default_jobs(engine)
+    if client is not None:
         from distributed import as_completed as dask_completed
 
-        client = Client(scheduler)
         return (lambda t: client.submit(run_task, t, pure=False), lambda fs: dask_completed(fs),
                 client.close)
+    if jobs == 1:
+        return _Later, iter, lambda: None
     pool = ProcessPoolExecutor(max_workers=jobs)
     return (lambda t: pool.submit(run_task, t), lambda fs: as_completed(fs), lambda: pool.shutdown(cancel_futures=True))
 
 
+def _header(path: Path) -> list[str]:
+    if not path.exists():
+        return []
+    with open(path, newline="") as f:
+        return next(csv.reader(f), [])
+
+
 def run_sweep(spec: SweepSpec, out_dir: Path, jobs: int | None = None, scheduler: str | None = None,
-              retry_failed: bool = False, progress: bool = True, plots: bool = True) -> Path:
-    """Run every unfinished case; returns the case table's path."""
+              retry_failed: bool = False, progress: bool = True, plots: bool = True, engine: str | None = None,
+              connect_timeout_s: float = CONNECT_TIMEOUT_S, worker_timeout_s: float = WORKER_TIMEOUT_S) -> Path:
+    """Run every case not yet in the table on ``engine`` (:func:`default_engine` when None, resolved
+    here and sent with every task); returns the case table's path. With ``scheduler``, raises
+    :class:`SchedulerError` as :func:`connect_dask` does, before anything is written."""
+    engine = engine or default_engine()
+    if engine not in ENGINES:
+        raise ValueError(f"engine {engine!r}: expected one of {', '.join(ENGINES)}")
     folder = out_dir / spec.name
-    folder.mkdir(parents=True, exist_ok=True)
     table = folder / "cases.csv"
     columns = _columns(spec)
+    header = _header(table)
+    if header and header != columns:
+        missing = [c for c in columns if c not in header]
+        extra = [c for c in header if c not in columns]
+        raise ValueError(f"{table} has other columns than this sweep produces (missing: {', '.join(missing) or '-'}; "
+                         f"not ours: {', '.join(extra) or '-'}); use another --out")
     existing = _read_table(table)
-    if existing and list(existing[0]) != columns:
-        raise ValueError(f"{table} has other columns than this sweep produces; use another --out")
-    keep = [r for r in existing if not (retry_failed and r["status"] != "ok")]
+    keep = [r for r in existing if not (retry_failed and r["status"] != "ok" and r["engine"] == engine)]
+    done = {r["case"] for r in keep}
+    tasks, total = plan(spec, done, engine)
+    todo = sum(len(t.seeds) for t in tasks)
+    say = (lambda text: print(f"sitl-sweep: {text}", file=sys.stderr, flush=True)) if progress else None
+    client = connect_dask(scheduler, connect_timeout_s, worker_timeout_s, say) if scheduler and tasks else None
+    folder.mkdir(parents=True, exist_ok=True)
     if len(keep) != len(existing):  # rewrite without the failures we are about to retry
         with open(table, "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=columns)
             w.writeheader()
             w.writerows(keep)
-    done = {r["case"] for r in keep}
-    tasks, total = plan(spec, done)
-    todo = sum(len(t.seeds) for t in tasks)
     if progress:
-        print(f"sweep {spec.name}: {total} cases, {len(done)} already done, {todo} to run in {len(tasks)} batches",
-              file=sys.stderr, flush=True)
-    new_file = not table.exists() or not keep and not existing
+        print(f"sweep {spec.name} on the {engine} engine: {total} cases, {total - todo} already done, {todo} to run "
+              f"in {len(tasks)} batches", file=sys.stderr, flush=True)
+    new_file = not header
     if tasks:
-        submit, completed, close = _executor(jobs, scheduler)
+        submit, completed, close = _executor(engine, jobs, client)
         t0 = time.monotonic()
         finished = 0
         try:
@@ -526,7 +601,7 @@ def run_sweep(spec: SweepSpec, out_dir: Path, jobs: int | None = None, scheduler
         if progress:
             print(file=sys.stderr)
     if plots:
-        draw_sweep(spec, table)
+        draw_sweep(spec, table, engine)
     return table
 
 
@@ -539,20 +614,22 @@ def load_cases(table: Path) -> list[dict[str, Any]]:
         out: dict[str, Any] = {}
         for k, v in r.items():
             try:
-                out[k] = float(v) if k not in ("case", "position", "attitude", "status", "error") else v
+                out[k] = float(v) if k not in ("case", "position", "attitude", "engine", "status", "error") else v
             except ValueError:
                 out[k] = v
         rows.append(out)
     return rows
 
 
-def draw_sweep(spec: SweepSpec, table: Path) -> list[Path]:
+def draw_sweep(spec: SweepSpec, table: Path, engine: str | None = None) -> list[Path]:
+    """Box plots of every metric per controller pair, and each metric against each swept
+    parameter, from the table's ok rows (of ``engine`` only, when given); returns the PNGs."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = [r for r in load_cases(table) if r["status"] == "ok"]
+    rows = [r for r in load_cases(table) if r["status"] == "ok" and engine in (None, r["engine"])]
     if not rows:
         return []
     combos = [(p, a) for a in spec.attitude for p in spec.position]
@@ -566,7 +643,8 @@ def draw_sweep(spec: SweepSpec, table: Path) -> list[Path]:
         ax.set_title(metric, fontsize=9)
         ax.grid(alpha=0.3, axis="y")
     n = len(spec.seeds) * max(1, len(spec.parameter_sets()))
-    fig.suptitle(f"{spec.name}: {spec.scenario.description} ({n} cases per combination)", fontsize=10)
+    on = f", {engine} engine" if engine else ""
+    fig.suptitle(f"{spec.name}: {spec.scenario.description} ({n} cases per combination{on})", fontsize=10)
     fig.tight_layout()
     path = table.parent / "boxplots.png"
     fig.savefig(path, dpi=110)
@@ -594,9 +672,12 @@ def draw_sweep(spec: SweepSpec, table: Path) -> list[Path]:
     return out
 
 
-def summary(spec: SweepSpec, table: Path) -> str:
-    rows = load_cases(table)
-    lines = [f"sweep {spec.name}: {len(rows)} cases in {table}",
+def summary(spec: SweepSpec, table: Path, engine: str | None = None) -> str:
+    """Per controller pair: ok and failed counts, each metric's median and quartiles (rows of
+    ``engine`` only, when given)."""
+    rows = [r for r in load_cases(table) if engine in (None, r["engine"])]
+    on = f" on the {engine} engine" if engine else ""
+    lines = [f"sweep {spec.name}: {len(rows)} cases{on} in {table}",
              f"{'position/attitude':>20} {'ok':>5} {'failed':>7} " + " ".join(f"{m + ' median [IQR]':>36}"
                                                                             for m in spec.metrics)]
     for a in spec.attitude:
@@ -620,21 +701,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("sweeps"), help="output folder (default: sweeps)")
     ap.add_argument("--jobs", type=int,
                     help="local worker processes (default: 1 on the compiled kernel, which uses all cores; else all)")
-    ap.add_argument("--engine", choices=("compiled", "objects"),
-                    help="simulator (default: compiled when numba is installed; sets SITL_ENGINE for workers too)")
+    ap.add_argument("--engine", choices=ENGINES,
+                    help="simulator (default: $SITL_ENGINE, else compiled when numba is installed); sent with "
+                         "every case to local and Dask workers alike, and recorded in the table's engine column")
     ap.add_argument("--scheduler", help="address of a Dask distributed scheduler, e.g. tcp://host:8786")
+    ap.add_argument("--connect-timeout", type=float, default=CONNECT_TIMEOUT_S, metavar="S",
+                    help=f"seconds to wait for the scheduler to answer (default {CONNECT_TIMEOUT_S:g})")
+    ap.add_argument("--worker-timeout", type=float, default=WORKER_TIMEOUT_S, metavar="S",
+                    help=f"seconds to wait for the scheduler's first worker (default {WORKER_TIMEOUT_S:g})")
     ap.add_argument("--retry-failed", action="store_true", help="run the failed cases again")
     ap.add_argument("--no-plots", action="store_true")
     args = ap.parse_args(argv)
-    if args.engine:
-        os.environ["SITL_ENGINE"] = args.engine
     try:
+        engine = args.engine or default_engine()
         spec = load_sweep(args.sweep)
-    except ConfigError as exc:
+        table = run_sweep(spec, args.out, args.jobs, args.scheduler, args.retry_failed, plots=not args.no_plots,
+                          engine=engine, connect_timeout_s=args.connect_timeout,
+                          worker_timeout_s=args.worker_timeout)
+    except (ConfigError, SchedulerError, ValueError) as exc:
         print(f"sitl-sweep: error: {exc}", file=sys.stderr)
         return 2
-    table = run_sweep(spec, args.out, args.jobs, args.scheduler, args.retry_failed, plots=not args.no_plots)
-    print(summary(spec, table))
+    print(summary(spec, table, engine))
     return 0
 
 

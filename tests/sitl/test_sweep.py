@@ -1,6 +1,7 @@
 """Sweeps: case tables, resumption, failures kept, and the cluster path giving the same numbers."""
 
 import csv
+import dataclasses
 import math
 
 import pytest
@@ -138,33 +139,118 @@ def test_cases_that_differ_in_gains_fly_as_one_batch_with_the_numbers_of_separat
     assert a != b
 
 
-def test_every_bundled_sweep_draws_its_figures_for_every_controller_it_names(tmp_path) -> None:
-    """The figures of both bundled sweeps from a table written here (one row per controller pair
-    and parameter set, the sweep's own columns): e3_wind and wind_and_mass flew every case and
-    then died drawing them (KeyError: 'indi') while the labels were a table of their own."""
-    import csv
-    import random
+def shortened(spec):
+    """The bundled sweep with every controller pair it names, one seed, one random sample and at
+    most two grid values per parameter: the fewest cases that still draw every figure."""
+    return dataclasses.replace(spec, seeds=spec.seeds[:1], random_samples=min(spec.random_samples, 1),
+                               grid={k: v[:2] for k, v in spec.grid.items()})
 
-    from companion.control.attitude import ATTITUDE_CONTROLLERS
-    from companion.control.names import CONTROLLER_LABELS
-    from companion.control.position import POSITION_CONTROLLERS
-    from sitl.lab.sweep import SWEEP_DIR, _columns, draw_sweep, load_sweep
 
-    assert set(ATTITUDE_CONTROLLERS) | set(POSITION_CONTROLLERS) <= set(CONTROLLER_LABELS)
-    rng = random.Random(1)
-    for path in sorted(SWEEP_DIR.glob("*.toml")):
-        spec = load_sweep(path)
-        table = tmp_path / spec.name / "cases.csv"
-        table.parent.mkdir()
-        columns = _columns(spec)
-        with open(table, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=columns)
-            w.writeheader()
-            for p in spec.position:
-                for a in spec.attitude:
-                    for k, params in enumerate(spec.parameter_sets() or [{}]):
-                        row = {c: rng.random() for c in columns}
-                        row.update(case=f"{p}-{a}-{k}", position=p, attitude=a, status="ok", error="", **params)
-                        w.writerow(row)
-        drawn = draw_sweep(spec, table)
-        assert drawn and all(f.stat().st_size > 10_000 for f in drawn), (path.name, drawn)
+def test_every_bundled_sweep_and_experiment_flies_and_draws_its_figures(tmp_path) -> None:
+    """Both bundled sweeps (every controller pair, one seed) and every paper experiment (one
+    seed) flown and drawn: e3_wind and wind_and_mass flew every case and then died drawing them
+    (KeyError: 'indi') while the sweep's labels were a table of their own."""
+    from sitl.lab.experiments import PAPER_EXPERIMENTS, run_experiment
+    from sitl.lab.sweep import SWEEP_DIR
+    from sitl.plant.scenario import load_scenario
+
+    bundled = sorted(SWEEP_DIR.glob("*.toml"))
+    assert {p.stem for p in bundled} >= {"e3_wind", "wind_and_mass"}
+    for path in bundled:
+        spec = shortened(load_sweep(path))
+        table = run_sweep(spec, tmp_path / "sweeps", jobs=1, progress=False, plots=True)
+        got = rows(table)
+        pairs = {(r["position"], r["attitude"]) for r in got if r["status"] == "ok"}
+        assert pairs == {(p, a) for p in spec.position for a in spec.attitude}, path.name
+        figures = [table.parent / "boxplots.png", *(table.parent / f"vs_{n}.png" for n in spec.parameter_names)]
+        assert all(f.stat().st_size > 10_000 for f in figures), path.name
+    for name in PAPER_EXPERIMENTS:
+        result = run_experiment(load_scenario(name), tmp_path / "experiments" / name, seeds=[1], jobs=1)
+        assert result.figure is not None and result.figure.stat().st_size > 10_000, name
+
+
+ENGINE = """name = "engine"
+scenario = "E3_wind"
+duration_s = 2.0
+window_s = [0.5, 2.0]
+position = ["ism_do"]
+attitude = ["ism_do"]
+seeds = [1, 2]
+metrics = ["rms_horizontal_error_m", "peak_error_m"]
+"""
+
+
+def test_one_table_keeps_each_engines_cases_apart_and_a_rerun_skips_both(tmp_path, capsys):
+    """The engine is a column and part of a case's key: a compiled run and an objects run into one
+    --out are four rows (their numbers differ: another random stream), not two rows where the
+    second engine silently found its cases "done"."""
+    spec = load_sweep(write(tmp_path, ENGINE))
+    table = run_sweep(spec, tmp_path / "out", jobs=1, progress=False, plots=False, engine="compiled")
+    run_sweep(spec, tmp_path / "out", jobs=1, progress=False, plots=True, engine="objects")
+    got = rows(table)
+    assert sorted(r["engine"] for r in got) == ["compiled", "compiled", "objects", "objects"]
+    by = {(r["engine"], r["seed"]): float(r["rms_horizontal_error_m"]) for r in got}
+    assert by[("compiled", "1")] != by[("objects", "1")]
+    run_sweep(spec, tmp_path / "out", jobs=1, progress=True, plots=False, engine="objects")
+    assert len(rows(table)) == 4 and "2 already done, 0 to run" in capsys.readouterr().err
+    from sitl.lab.sweep import summary
+
+    assert "2 cases on the objects engine" in summary(spec, table, "objects")
+
+
+def test_the_engine_asked_for_reaches_dask_workers_whose_environment_says_otherwise(tmp_path, monkeypatch, capsys):
+    """A worker process started before the sweep (its SITL_ENGINE unset: compiled) flies the
+    objects engine when --engine objects asks: its numbers are the local objects run's, bit for bit
+    (setting SITL_ENGINE in the client never reached it: the compiled numbers came back)."""
+    from distributed import LocalCluster
+
+    from sitl.lab.sweep import main
+
+    monkeypatch.delenv("SITL_ENGINE", raising=False)
+    path = write(tmp_path, ENGINE)
+    local = rows(run_sweep(load_sweep(path), tmp_path / "local", jobs=1, progress=False, plots=False,
+                           engine="objects"))
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        rc = main([str(path), "--engine", "objects", "--scheduler", cluster.scheduler_address,
+                   "--out", str(tmp_path / "dask"), "--no-plots"])
+    assert rc == 0
+    remote = rows(tmp_path / "dask" / "engine" / "cases.csv")
+    assert [r["engine"] for r in remote] == ["objects", "objects"]
+    assert {r["case"]: r["rms_horizontal_error_m"] for r in remote} == {
+        r["case"]: r["rms_horizontal_error_m"] for r in local}
+    assert "1 Dask workers at" in capsys.readouterr().err
+
+
+def closed_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_an_unreachable_scheduler_is_one_line_within_the_connect_timeout(tmp_path, capsys):
+    from sitl.lab.sweep import main
+
+    address = f"tcp://127.0.0.1:{closed_port()}"
+    rc = main([str(write(tmp_path, ENGINE)), "--scheduler", address, "--connect-timeout", "1",
+               "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and err[-1].startswith(f"sitl-sweep: error: no Dask scheduler answered at {address} within 1 s")
+    assert not any("Traceback" in line for line in err)
+    assert not (tmp_path / "out" / "engine" / "cases.csv").exists()  # nothing written, nothing lost
+
+
+def test_a_scheduler_without_workers_says_it_is_waiting_then_gives_up_at_the_worker_timeout(tmp_path, capsys):
+    from distributed import LocalCluster
+
+    from sitl.lab.sweep import main
+
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        rc = main([str(write(tmp_path, ENGINE)), "--scheduler", cluster.scheduler_address, "--worker-timeout", "2",
+                   "--out", str(tmp_path / "out")])
+        address = cluster.scheduler_address
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and err[-1] == (f"sitl-sweep: error: the Dask scheduler at {address} has no workers after 2 s "
+                                   f"(start some: dask worker {address})")
+    assert any(line.startswith(f"sitl-sweep: waiting for a worker at {address}") for line in err)
