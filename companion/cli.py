@@ -28,6 +28,7 @@ from typing import Sequence
 from companion.config import ConfigError
 from companion.control.position import POSITION_CONTROLLERS
 from companion.link.url import parse_endpoint
+from companion.mavlink.identity import VehicleTarget
 from companion.mavlink.signing import SigningError, fingerprint, write_key_file
 from companion.mavlink.signing_options import add_signing_options, signing_key
 
@@ -60,12 +61,17 @@ def _fly(args: argparse.Namespace) -> int:
         print("companion: error: MAVLink signing needs --backend pymavlink (MAVSDK 4.1's Python API takes no "
               "signing key)", file=sys.stderr)
         return 2
+    if args.target_component is not None and args.target_system is None:
+        print("companion: error: --target-component needs --target-system too", file=sys.stderr)
+        return 2
+    target = (None if args.target_system is None else
+              VehicleTarget(args.target_system, args.target_component or 0))
     opts = FlightOptions(mission_file=Path(args.mission),
                          connect=args.connect, backend=args.backend, controller=args.controller, rate_hz=args.rate,
                          out_dir=Path(args.out), thrust_max_n=args.thrust_max, quiet=args.quiet, signing_key=key,
                          connect_timeout_s=args.connect_timeout, position_wait_s=args.position_wait,
                          output=args.output, take_over=args.take_over,
-                         ardupilot_shaping=args.ardupilot_shaping)
+                         ardupilot_shaping=args.ardupilot_shaping, target=target)
     try:
         flight = Flight(mission, opts)
     except OSError as exc:
@@ -153,6 +159,13 @@ def _positive(text: str) -> float:
     return value
 
 
+def _mavlink_id(text: str) -> int:
+    """A MAVLink system or component id, 1..255 (argparse: exit 2 with the option named)."""
+    if not text.strip().isdigit() or not 1 <= int(text) <= 255:
+        raise argparse.ArgumentTypeError(f"expected an id of 1..255, got {text!r}")
+    return int(text)
+
+
 def _non_negative(text: str) -> float:
     value = _positive(text) if text.strip() not in ("0", "0.0") else 0.0
     return value
@@ -227,6 +240,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                           "(--no-ardupilot-shaping, the default) its attitude input shaping, ATC_RATE_FF_ENAB; turned "
                           "off, it is put back when the flight ends, on every path (default: the mission's "
                           "[controller] ardupilot_shaping)")
+    fly.add_argument("--target-system", type=_mavlink_id, metavar="N",
+                     help="the MAVLink system id of the vehicle to fly when a link carries several (a router, a "
+                          "swarm radio); overrides the mission's [target] system_id. Without one, the companion flies "
+                          "the only autopilot on the link and refuses when it hears more than one")
+    fly.add_argument("--target-component", type=_mavlink_id, metavar="C",
+                     help="its autopilot's component id (default: whichever autopilot component of that system)")
     fly.add_argument("--no-plots", action="store_true")
     fly.add_argument("--quiet", action="store_true")
     add_signing_options(fly)

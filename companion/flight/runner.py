@@ -32,6 +32,7 @@ from companion.control.vector import clip_norm
 from companion.link import LinkError, VehicleLink, open_link
 from companion.link.state import LANDED_IN_AIR
 from companion.link.resets import UNSTABLE_RESETS, UNSTABLE_WINDOW_S, ResetBound
+from companion.mavlink.identity import VehicleTarget, resolve_target
 from companion.mavlink.signing import fingerprint
 from companion.mission import Mission
 
@@ -84,6 +85,8 @@ class FlightOptions:
     """fly a vehicle that is already armed or flying, from where it is (its take-off steps skipped)"""
     ardupilot_shaping: bool | None = None
     """overrides the mission's [controller] ardupilot_shaping"""
+    target: VehicleTarget | None = None
+    """the vehicle to fly on the link (``--target-system``); overrides the mission's [target]"""
 
 
 @dataclass
@@ -133,7 +136,10 @@ class Flight:
         self.rate_hz = opt.rate_hz or mission.controller.rate_hz
         self.folder = flight_folder(opt.out_dir, mission.name, self.controller_name)
         self.recorder = FlightRecorder(self.folder, warn=self.log)
-        link_options = {} if opt.signing_key is None else {"signing_key": opt.signing_key}
+        self.target, self.target_note = resolve_target(opt.target, mission.target)
+        link_options: dict[str, object] = {"target": self.target}
+        if opt.signing_key is not None:
+            link_options["signing_key"] = opt.signing_key
         self.link: VehicleLink = open_link(opt.connect, opt.backend, traffic=self.recorder.traffic, **link_options)
         safety = mission.safety
         self.guard = SetpointGuard(math.radians(safety.max_tilt_deg), math.radians(safety.max_rate_deg_s))
@@ -496,7 +502,9 @@ class Flight:
     async def _mission(self) -> tuple[str, str]:
         link, m = self.link, self.mission
         try:
-            self.log(f"connecting to {self.opt.connect} ({self.opt.backend})")
+            self.log(f"connecting to {self.opt.connect} ({self.opt.backend}), to fly {self.target.describe()}")
+            if self.target_note:
+                self.log(self.target_note)
             link.progress = self.log
             await link.wait_connected(self.opt.connect_timeout_s, self.opt.position_wait_s)
             self.log(f"connected: {link.state.autopilot} system {link.state.sysid}, mode {link.state.mode}")

@@ -34,6 +34,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.link.clock import VehicleClock
 from companion.mavlink.boot_time import boot_ms
+from companion.mavlink.identity import SURVEY_S, VehicleTarget
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID
 from companion.link.stamps import StampGate
 from companion.control.quaternion import Quat
@@ -69,9 +70,14 @@ def _mavsdk_url(url: str) -> str:
 
 
 class MavsdkLink(VehicleLink):
-    def __init__(self, url: str, traffic: TrafficHook | None = None, signing_key: bytes | None = None) -> None:
+    def __init__(self, url: str, traffic: TrafficHook | None = None, signing_key: bytes | None = None,
+                 target: VehicleTarget | None = None) -> None:
         if signing_key is not None:
             raise LinkError("MAVLink signing needs --backend pymavlink: MAVSDK 4.1's Python API takes no signing key")
+        self.target = target or VehicleTarget()
+        if self.target.component_id not in (0, 1):
+            raise LinkError("the MAVSDK backend flies an autopilot's component 1 only: drop --target-component or "
+                            "use --backend pymavlink")
         self.url = url
         self.traffic = traffic
         self.state = VehicleState()
@@ -116,9 +122,7 @@ class MavsdkLink(VehicleLink):
         (:class:`~companion.link.base.ConnectWait`)."""
         assert self._sdk is not None
         start = time.monotonic()
-        system = await self._sdk.first_autopilot(timeout_s=timeout_s)
-        if system is None:
-            raise LinkError(f"no autopilot found at {self.url} within {timeout_s:g} s")
+        system = await self._choose_system(timeout_s)
         if getattr(await system.autopilot_type(), "name", "") != "PX4":
             raise LinkError("the MAVSDK backend flies PX4; use --backend pymavlink for ArduPilot")
         self._system = system
@@ -139,6 +143,43 @@ class MavsdkLink(VehicleLink):
                 self.stats["rate_requests_refused"] += 1
         # run() fills the state; it must already be running
         await self._wait_navigation(ConnectWait(timeout_s, position_wait_s), start)
+
+    async def _autopilots(self) -> dict[int, Any]:
+        """The systems MAVSDK has discovered that have an autopilot, by system id."""
+        assert self._sdk is not None
+        found: dict[int, Any] = {}
+        for system in self._sdk.get_systems():
+            if system.has_autopilot():
+                found[await system.get_system_id()] = system
+        return found
+
+    async def _choose_system(self, timeout_s: float) -> Any:
+        """The target system (or, with none chosen, the only autopilot), after listening
+        :data:`SURVEY_S` for every autopilot on the link; LinkError naming the systems heard when
+        the target is absent or, without a target, when there are several. MAVSDK merges two
+        senders of one system id into one system: that conflict shows only with the pymavlink
+        backend."""
+        end = time.monotonic() + timeout_s
+        first = math.nan
+        while True:
+            found = await self._autopilots()
+            now = time.monotonic()
+            if found and math.isnan(first):
+                first = now
+            ours = found.get(self.target.system_id) if self.target.chosen else None
+            if (ours is not None or (not self.target.chosen and found)) and now >= min(first + SURVEY_S, end):
+                break
+            if now >= end:
+                heard = ", ".join(map(str, sorted(found))) or "none"
+                if self.target.chosen:
+                    raise LinkError(f"no heartbeat from {self.target.describe()}; heard systems {heard} (within "
+                                    f"--connect-timeout {timeout_s:g} s at {self.url})")
+                raise LinkError(f"no autopilot found at {self.url} within {timeout_s:g} s")
+            await asyncio.sleep(0.1)
+        if not self.target.chosen and len(found) > 1:
+            raise LinkError(f"more than one autopilot on this link: systems {', '.join(map(str, sorted(found)))}; "
+                            f"choose one with --target-system N (or [target] system_id = N in the mission)")
+        return ours if ours is not None else next(iter(found.values()))
 
     # --- telemetry -------------------------------------------------------------------------
 
@@ -354,7 +395,7 @@ class MavsdkLink(VehicleLink):
                            retries: int = 3) -> float | None:
         """PARAM_REQUEST_READ (``value`` None) or PARAM_SET of the plant's component, through
         MavlinkDirect (MAVSDK's parameter plugin serves the autopilot); its PARAM_VALUE."""
-        sysid = self.state.sysid or 1
+        sysid = self.state.sysid  # set once the target system was chosen (wait_connected)
         fields = {"target_system": sysid, "target_component": PLANT_COMPID, "param_id": name}
         if value is None:
             kind, fields = "PARAM_REQUEST_READ", fields | {"param_index": -1}

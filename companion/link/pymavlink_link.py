@@ -3,7 +3,10 @@
 Datagrams go from the socket (every waiting one at each wake-up: :mod:`.udp`) into a bounded
 queue (full: dropped and counted, never grown) and are parsed by :meth:`PymavlinkLink.run`,
 everything queued at each wake-up. Only messages from
-the autopilot this link locked on to (the first autopilot heartbeat) update the state. Commands
+the autopilot this link locked on to update the state: the target system (and component) when
+one was chosen, else the first autopilot heard, and connecting is refused when the target is
+absent, when two senders claim its identity, or (without a target) when more than one autopilot
+is on the link (:mod:`companion.mavlink.identity`). Nothing is addressed to any other system. Commands
 are sent as COMMAND_LONG and retried until their COMMAND_ACK arrives. Every datagram, in and
 out, is handed to the ``traffic`` hook for the flight's ``.tlog``.
 
@@ -34,6 +37,7 @@ from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
 from companion.mavlink import ftp
 from companion.mavlink.boot_time import boot_ms
 from companion.mavlink.events import MSG_ID_EVENT, EventCatalogue, parse_event
+from companion.mavlink.identity import SURVEY_HEARTBEATS, SURVEY_S, AutopilotsHeard, VehicleTarget, connection_problem
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID, decode_value, encode_value, param_name
 from companion.mavlink.signing import SignatureCheck, describe_rejections, enable_signing, fingerprint
 from companion.mavlink.stream import SerialEndpoint, TcpEndpoint
@@ -63,7 +67,16 @@ STREAM_RATES_HZ = {
 
 class PymavlinkLink(VehicleLink):
     def __init__(self, url: str, traffic: TrafficHook | None = None, sysid: int = 255, compid: int = 191,
-                 command_timeout_s: float = 1.0, command_retries: int = 5, signing_key: bytes | None = None) -> None:
+                 command_timeout_s: float = 1.0, command_retries: int = 5, signing_key: bytes | None = None,
+                 target: VehicleTarget | None = None) -> None:
+        self.target = target or VehicleTarget()
+        self.heard = AutopilotsHeard()
+        """every autopilot identity heard: its addresses and sequence runs (two claimants, other systems)"""
+        self._surveying = True
+        """connecting: datagrams from every address are read (their heartbeats only), to hear every autopilot"""
+        self._first_heartbeat = math.nan
+        self._chosen_heartbeats = 0
+        """heartbeats of the chosen autopilot: the survey's clock in its own time (a simulated one may run fast)"""
         self.endpoint = parse_endpoint(url)
         self.direction = "in" if self.endpoint.kind == "udpin" else "out"
         self.address = (self.endpoint.host, self.endpoint.port) if self.endpoint.kind != "serial" else (
@@ -88,7 +101,7 @@ class PymavlinkLink(VehicleLink):
         0.7% of commands, 5 tries 0.02%"""
         self._transport: UdpEndpoint | TcpEndpoint | SerialEndpoint | None = None
         self._peer: tuple[str, int] | None = self.address if self.direction == "out" else None
-        self._queue: asyncio.Queue[tuple[bytes, float]] = asyncio.Queue(maxsize=QUEUE_SIZE)
+        self._queue: asyncio.Queue[tuple[bytes, float, tuple[str, int]]] = asyncio.Queue(maxsize=QUEUE_SIZE)
         self._acks: dict[int, asyncio.Future[int]] = {}
         self._command_lock = asyncio.Lock()
         """one command in flight at a time: an ACK names only the command id, not the request"""
@@ -174,13 +187,11 @@ class PymavlinkLink(VehicleLink):
 
     def _received(self, data: bytes, addr: tuple[str, int]) -> None:
         self.stats["received"] += 1
-        if self._peer is None:
-            self._peer = addr  # udpin: whoever talks first is the vehicle
-        elif addr != self._peer:
+        if self._peer is not None and addr != self._peer and not self._surveying:
             self.stats["foreign_datagrams"] += 1
             return
         try:
-            self._queue.put_nowait((data, time.monotonic()))  # stamped on arrival, not when parsed
+            self._queue.put_nowait((data, time.monotonic(), addr))  # stamped on arrival, not when parsed
         except asyncio.QueueFull:
             self.stats["dropped_queue_full"] += 1
 
@@ -195,14 +206,14 @@ class PymavlinkLink(VehicleLink):
         queue = self._queue
         while not self._closed and not stop.is_set():
             try:
-                item: tuple[bytes, float] | None = await asyncio.wait_for(queue.get(), timeout=0.2)
+                item: tuple[bytes, float, tuple[str, int]] | None = await asyncio.wait_for(queue.get(), timeout=0.2)
             except TimeoutError:
                 item = None
             while item is not None:
-                data, arrived = item
+                data, arrived, addr = item
                 if self.traffic is not None:
                     self.traffic(data)
-                self._parse(data, arrived)
+                self._parse(data, arrived, addr)
                 self.rx_lag_s = lag = time.monotonic() - arrived
                 if lag > self.rx_lag_max_s:
                     self.rx_lag_max_s = lag
@@ -213,7 +224,7 @@ class PymavlinkLink(VehicleLink):
                                                      mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
                 heartbeat_next = now + 1.0
 
-    def _parse(self, data: bytes, wall: float) -> None:
+    def _parse(self, data: bytes, wall: float, addr: tuple[str, int] | None = None) -> None:
         parsed = parse_datagram(self.parser, data)
         if parsed.bad:
             self.stats["bad_data"] += parsed.bad
@@ -227,11 +238,23 @@ class PymavlinkLink(VehicleLink):
                     self.signing_rejections[f"{reason} {kind}"] += 1
                     continue
             try:
-                self._handle(kind, msg, wall)
+                src, comp = _source(msg, kind)
+                self.heard.frame(src, comp, addr, msg.get_seq())
+                if self._peer is not None and addr != self._peer:  # udpin, connecting: another sender
+                    self._stranger(kind, msg, src, comp, addr)
+                    continue
+                self._handle(kind, msg, wall, addr)
             except Exception:  # a malformed field must not stop the reader
                 self.stats["handler_errors"] += 1
 
-    def _handle(self, kind: str, msg: Any, wall: float) -> None:
+    def _stranger(self, kind: str, msg: Any, src: int, comp: int, addr: tuple[str, int] | None) -> None:
+        """A frame from an address other than the vehicle's (udpin, while connecting): its heartbeat is
+        heard (another autopilot, or a second claimant of ours); nothing else of it is believed."""
+        self.stats["foreign_datagrams"] += 1
+        if kind == "HEARTBEAT" and flavour_for(msg.autopilot) is not None:
+            self.heard.heartbeat(src, comp, addr)
+
+    def _handle(self, kind: str, msg: Any, wall: float, addr: tuple[str, int] | None = None) -> None:
         st = self.state
         src, comp = _source(msg, kind)
         if kind == "HEARTBEAT":
@@ -240,13 +263,18 @@ class PymavlinkLink(VehicleLink):
                 if st.sysid and src == st.sysid and comp == PLANT_COMPID:
                     self._plant_heard = True
                 return  # a ground station or a component that is not an autopilot
-            if st.sysid == 0:
+            self.heard.heartbeat(src, comp, addr)
+            if st.sysid == 0 and self.target.matches(src, comp):
                 st.sysid, st.compid, st.autopilot = src, comp, flavour.name
                 st.vehicle_type = msg.type
                 self.flavour = flavour
+                self._first_heartbeat = wall
+                if self._peer is None and addr is not None:
+                    self._peer = addr  # udpin: the chosen autopilot's address is the vehicle's
             if src != st.sysid or comp != st.compid:
                 self.stats["foreign_heartbeats"] += 1
                 return
+            self._chosen_heartbeats += 1
             if flavour is not self.flavour or msg.type != st.vehicle_type:
                 # the locked autopilot cannot change its kind: a forged or misrouted heartbeat
                 self.stats["heartbeats_of_another_kind"] += 1
@@ -407,6 +435,9 @@ class PymavlinkLink(VehicleLink):
                         "stale timestamp": ": compare both machines' clocks (UTC)",
                         "future timestamp": ": compare both machines' clocks (UTC)"}.get(max(beats, key=beats.get), "")
                 raise LinkError(f"heartbeats from {where} refused: {describe_rejections(beats)}{hint}") from None
+            absent = connection_problem(self.target, self.heard, None)
+            if absent is not None and self.heard.systems():
+                raise LinkError(f"{absent} (within --connect-timeout {timeout_s:g} s at {where})") from None
             if self.signature_check is None:
                 hint = ("; if the vehicle uses MAVLink signing, give its key "
                         "(--signing-key-file or $MAVLINK_SIGNING_KEY)")
@@ -415,6 +446,12 @@ class PymavlinkLink(VehicleLink):
                         f"{fingerprint(self.signature_check.key)})?")
             raise LinkError(f"{where} answers, but with no autopilot heartbeat within {timeout_s:g} s (a ground "
                             f"station or another program on that port?){hint}") from None
+        # every autopilot on the link is heard before anything is addressed to the chosen one
+        survey_end = min(self._first_heartbeat + SURVEY_S, start + timeout_s)
+        while time.monotonic() < survey_end and self._chosen_heartbeats < SURVEY_HEARTBEATS:
+            await asyncio.sleep(0.01)
+        self._refuse_if_not_ours()
+        self.progress_line(self._heard_line())
         # the requests go out while the wait for telemetry (and its progress lines) runs
         asking = asyncio.create_task(self._ask_for_telemetry())
         try:
@@ -426,6 +463,8 @@ class PymavlinkLink(VehicleLink):
                 asking.cancel()
                 with contextlib.suppress(asyncio.CancelledError):
                     await asking
+        self._refuse_if_not_ours()  # telemetry flows: two senders' sequence runs show by now
+        self._surveying = False
         # what is not telemetry, once telemetry flows (each bounded on its own: a few seconds at most)
         if self.flavour is not ARDUPILOT:
             await self._load_events()
@@ -434,6 +473,23 @@ class PymavlinkLink(VehicleLink):
                                     1e6 / STREAM_RATES_HZ[mavlink.MAVLINK_MSG_ID_HIGHRES_IMU], require_ack=False,
                                     attempts=2)
             await asyncio.sleep(0.3)
+
+    def _refuse_if_not_ours(self) -> None:
+        """LinkError if this link must not be flown: two claimants of the locked identity, or
+        (without a target) more than one autopilot (:func:`connection_problem`)."""
+        problem = connection_problem(self.target, self.heard, (self.state.sysid, self.state.compid))
+        if problem is not None:
+            self.stats["identity_refused"] += 1
+            raise LinkError(problem)
+
+    def _heard_line(self) -> str:
+        others = [s for s in self.heard.systems() if s != self.state.sysid]
+        return (f"flying system {self.state.sysid} component {self.state.compid} ({self.target.describe()})"
+                + (f"; ignoring systems {', '.join(map(str, others))} on this link" if others else ""))
+
+    def progress_line(self, text: str) -> None:
+        if self.progress is not None:
+            self.progress(text)
 
     async def _ask_for_telemetry(self) -> None:
         """The streams the controller needs, the autopilot's version and every parameter (for the
@@ -469,7 +525,7 @@ class PymavlinkLink(VehicleLink):
                     seq += 1
                     self._ftp_reply = asyncio.get_running_loop().create_future()
                     self._send(self.mav.file_transfer_protocol_encode(
-                        0, self.state.sysid or 1, self.state.compid or 1,
+                        0, *self._vehicle(),
                         list(ftp.encode(seq, session, opcode, offset, data, size))))
                     try:
                         return await asyncio.wait_for(self._ftp_reply, timeout_s)
@@ -522,7 +578,7 @@ class PymavlinkLink(VehicleLink):
     async def _command_long(self, command: int, *params: float, require_ack: bool = True,
                             attempts: int | None = None) -> int:
         p = list(params) + [0.0] * (7 - len(params))
-        target = (self.state.sysid or 1, self.state.compid or 1)
+        target = self._vehicle()
         loop = asyncio.get_running_loop()
         fut: asyncio.Future[int] = loop.create_future()
         self._acks[command] = fut
@@ -587,17 +643,25 @@ class PymavlinkLink(VehicleLink):
 
     # --- setpoints and parameters ----------------------------------------------------------
 
+    def _vehicle(self) -> tuple[int, int]:
+        """The locked autopilot's system and component: everything addressed goes there, and
+        nothing is addressed before there is one (never a default system 1)."""
+        st = self.state
+        if not st.sysid:
+            raise LinkError("no autopilot chosen yet: nothing is addressed before one is")
+        return st.sysid, st.compid
+
     def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0) -> None:
         t_ms = boot_ms(self.state.t)
         self._send(self.mav.set_attitude_target_encode(
-            t_ms, self.state.sysid or 1, self.state.compid or 1, type_mask, [float(c) for c in q],
+            t_ms, *self._vehicle(), type_mask, [float(c) for c in q],
             float(body_rates_rad_s[0]), float(body_rates_rad_s[1]), float(body_rates_rad_s[2]), float(thrust)))
         self.stats["setpoints"] += 1
 
     def send_position_target(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, yaw_rad: float) -> None:
         t_ms = boot_ms(self.state.t)
         self._send(self.mav.set_position_target_local_ned_encode(
-            t_ms, self.state.sysid or 1, self.state.compid or 1, mavlink.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
+            t_ms, *self._vehicle(), mavlink.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
             *(float(c) for c in (*pos_ned_m, *vel_ned_m_s, *accel_ned_m_s2)), float(yaw_rad), 0.0))
         self.stats["setpoints"] += 1
 
@@ -633,9 +697,9 @@ class PymavlinkLink(VehicleLink):
         """The parameter's value from whichever component serves it: asked of the autopilot and,
         until its owner is known, of a simulated plant's component too (the first answer wins;
         the plant never serves a name the autopilot has)."""
-        sysid = self.state.sysid or 1
+        sysid, compid = self._vehicle()
         owner = self._param_owner.get(name)
-        targets = [owner] if owner is not None else [self.state.compid or 1, PLANT_COMPID]
+        targets = [owner] if owner is not None else [compid, PLANT_COMPID]
 
         def ask() -> None:
             for compid in targets:
@@ -647,8 +711,9 @@ class PymavlinkLink(VehicleLink):
         integer parameter, and encodes integers bytewise)."""
         if name not in self._param_types and await self.get_param(name) is None:
             raise LinkError(f"parameter {name}: the autopilot has no such parameter")
-        owner = self._param_owner.get(name, self.state.compid or 1)
-        target = (self.state.sysid or 1, owner)
+        sysid, compid = self._vehicle()
+        owner = self._param_owner.get(name, compid)
+        target = (sysid, owner)
         ptype = self._param_types.get(name, MAV_PARAM_TYPE_REAL32)
         try:
             wire = encode_value(value, ptype, bytewise=self.flavour is PX4 and owner != PLANT_COMPID)

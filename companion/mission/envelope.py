@@ -123,6 +123,10 @@ ENVELOPE: dict[str, Range] = {
     "safety.volume.north_m": Range(-1000, 1000, "m", "box: [min, max] north of home; min < 0 < max"),
     "safety.volume.east_m": Range(-1000, 1000, "m", "box: [min, max] east of home; min < 0 < max"),
     "safety.volume.circles[].radius_m": Range(1, 1000, "m", "fence circle"),
+    "target.system_id": Range(1, 255, "", "the MAVLink system id of the vehicle to fly (PX4 MAV_SYS_ID, ArduPilot "
+                              "SYSID_THISMAV)", zero_means="the only autopilot on the link"),
+    "target.component_id": Range(1, 255, "", "its autopilot's component id (1 on PX4 and ArduPilot)",
+                                 zero_means="that system's autopilot, whichever component"),
     "steps[].altitude_m": Range(MIN_HEIGHT_M, 120, "m", "take-off height above home"),
     "steps[].duration_s": Range(0.01, 3600, "s", "hold / wait"),
     "steps[].speed_m_s": Range(0.1, 15, "m/s", "goto speed (default: trajectory.max_speed_m_s)"),

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from companion.control.params import PositionGains, ReferenceParams, TrajectoryParams, VehicleParams
 from companion.control.vector import Vec3
+from companion.mavlink.identity import VehicleTarget
 
 from .safety import SafetyVolume
 
@@ -116,5 +117,8 @@ class Mission:
     trajectory: TrajectoryParams = field(default_factory=TrajectoryParams)
     thrust: ThrustConfig = field(default_factory=ThrustConfig)
     safety: SafetyConfig = field(default_factory=SafetyConfig)
+    target: VehicleTarget = field(default_factory=VehicleTarget)
+    """which vehicle on the link to fly (``[target] system_id``, ``component_id``); ``fly
+    --target-system`` overrides it"""
     steps: tuple[Step, ...] = ()
 

@@ -221,11 +221,18 @@ class MavlinkServer:
 
     # --- sending -------------------------------------------------------------------------
 
+    def _pack(self, msg: mavlink.MAVLink_message) -> bytes:
+        """The frame, numbered: MAVLink's sequence number counts every frame sent (``pack`` alone
+        does not advance it), which receivers use to see loss and to tell two senders apart."""
+        buf = msg.pack(self.mav)
+        self.mav.seq = (self.mav.seq + 1) % 256
+        return buf
+
     def send(self, msg: mavlink.MAVLink_message) -> None:
         """To every peer (STATUSTEXT, parameter changes)."""
         if self.transport is None or not len(self.peers):
             return
-        buf = msg.pack(self.mav)
+        buf = self._pack(msg)
         for peer in self.peers:
             self.transport.sendto(buf, peer.addr)
         self.stats["sent"] += 1
@@ -237,13 +244,13 @@ class MavlinkServer:
             return
         if self.transport is None:
             return
-        self.transport.sendto(msg.pack(self.mav), self._source)
+        self.transport.sendto(self._pack(msg), self._source)
         self.stats["sent"] += 1
 
     def _send_to(self, peers: list[Peer], msg: mavlink.MAVLink_message) -> None:
         if self.transport is None or not peers:
             return
-        buf = msg.pack(self.mav)
+        buf = self._pack(msg)
         for peer in peers:
             self.transport.sendto(buf, peer.addr)
         self.stats["sent"] += 1
@@ -341,7 +348,7 @@ class MavlinkServer:
         packed: dict[int, bytes | None] = {}
         for msg_id in order:
             msg = enc[msg_id]()
-            packed[msg_id] = None if msg is None else msg.pack(self.mav)
+            packed[msg_id] = None if msg is None else self._pack(msg)
             if msg is not None:
                 self.stats["sent"] += 1
         rank = {m: i for i, m in enumerate(order)}
