@@ -58,6 +58,8 @@ from companion.mavlink.boot_time import BOOT_MS_PERIOD_S, unwrap_boot_s
 
 __all__ = ["StampGate", "Admitted", "UNIX_EPOCH_MIN_S"]
 
+SEEN_RATE_SPAN_S = 0.1
+"""wall seconds of believed stamps before their own rate counts for the jump bound"""
 UNIX_EPOCH_MIN_S = 1.0e9
 """stamps at or above this many seconds are UNIX time (2001-09-09), not time since boot"""
 
@@ -103,6 +105,8 @@ class StampGate:
     wraps: int = 0
     """wraps of ``time_boot_ms`` believed (the newest wrapping stamp's whole periods)"""
     _candidate: list[tuple[float, float]] = field(default_factory=list)
+    _base: tuple[float, float] = (math.nan, math.nan)
+    """(stamp, wall) of this base's first believed stamp: the rate the stamps show"""
     _first_wall: float = -math.inf
     _epoch_known: bool = False
     """a believed stamp of a field that does not wrap has fixed which wrap the vehicle is on"""
@@ -142,8 +146,17 @@ class StampGate:
         return admitted
 
     def _allowed_ahead(self, wall: float, rate: float) -> float:
-        """How far past the newest believed stamp the vehicle can have lived by ``wall`` [vehicle s]."""
-        return max(self.max_rate * max(rate, 1.0) * max(wall - self.newest_wall, 0.0), 0.0) + self.slack_s
+        """How far past the newest believed stamp the vehicle can have lived by ``wall`` [vehicle s],
+        at the fitted ``rate`` or the rate the believed stamps of this base show, whichever is more
+        (the clock starts at 1x and fits only after half a second: a fast simulated vehicle and a
+        stall of ours before that had every later stamp refused)."""
+        rate = max(rate, 1.0, self._seen_rate())
+        return max(self.max_rate * rate * max(wall - self.newest_wall, 0.0), 0.0) + self.slack_s
+
+    def _seen_rate(self) -> float:
+        """Vehicle seconds per wall second between this base's first and newest believed stamps."""
+        span = self.newest_wall - self._base[1]
+        return (self.newest_s - self._base[0]) / span if span >= SEEN_RATE_SPAN_S else 0.0
 
     def _judge(self, stamp_s: float, rebase_s: float, wall: float, rate: float, wraps: bool) -> Admitted | None:
         """The rules of the module's docstring for one (unwrapped) stamp; ``rebase_s``: the value a
@@ -183,6 +196,8 @@ class StampGate:
         return True
 
     def _accept(self, stamp_s: float, wall: float) -> None:
+        if not math.isfinite(self.newest_s):
+            self._base = (stamp_s, wall)
         self.newest_s, self.newest_wall = stamp_s, wall
         self.consistent_wall = max(self.consistent_wall, wall)
 
@@ -203,6 +218,7 @@ class StampGate:
                 and wall - self.consistent_wall >= self.rebase_silence_s):
             self.counts["stamp_rebased"] += 1
             self.rebases += 1
+            self.newest_s = math.nan  # a new base: its rate is learnt afresh
             self._accept(stamp_s, wall)
             c.clear()
             return True

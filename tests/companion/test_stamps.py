@@ -246,3 +246,16 @@ def test_a_restart_after_half_a_wrap_of_uptime_is_followed_on_the_raw_stamps():
     t, w, taken = fly_wrapping(f, 0.5, w, 3.0)
     assert f.gate.rebases == 1 and all(taken[-100:])
     assert math.isclose(f.state.t_att, t, abs_tol=1e-6) and math.isclose(f.state.t_imu, t + 0.002, abs_tol=1e-6)
+
+
+def test_a_fast_vehicle_stalled_before_the_clock_has_its_rate_is_still_followed():
+    """A simulated vehicle at 10x, and our own 0.2 s stall 0.3 s after connecting, before the clock's
+    first fit (0.5 s of samples): the burst after it (2 s of vehicle time) is what the vehicle lived,
+    and the gate's bound follows the rate its own believed stamps show, not the clock's initial 1x.
+    On a loaded host PX4 on the plant (free-running at ~10x) had every stamp refused from then on,
+    and the companion flew blind until a rebase 90 s later."""
+    f = Feed()
+    t, w = f.fly(10.0, 0.0, 0.3, rate=10.0)
+    assert f.attitude(t + 2.0, w + 0.2)  # the stall's burst
+    t2, _ = f.fly(t + 2.0, w + 0.2, 1.0, rate=10.0)
+    assert f.gate.counts["stamp_jump_forward"] == 0 and f.state.t == t2
