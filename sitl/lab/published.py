@@ -57,10 +57,12 @@ class Spread:
     n: int
 
 
-def spread(values: Sequence[float]) -> Spread:
+def spread(values: Sequence[float], seeds: int | None = None) -> Spread:
+    """``n`` is the number of distinct ``seeds`` when given: cases that share a seed (one per random
+    sample of a model error) share their gusts and noise and are not independent draws."""
     v = np.asarray(values, dtype=float)
     return Spread(float(np.median(v)), float(np.percentile(v, 25)), float(np.percentile(v, 75)), float(v.max()),
-                  len(v))
+                  len(v) if seeds is None else seeds)
 
 
 def _ok(cases: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -81,8 +83,9 @@ def grid_spreads(spec: SweepSpec, cases: Sequence[dict[str, Any]],
     sweep's one grid parameter; its one attitude controller)."""
     (param,) = spec.grid
     ok = _ok(cases)
-    return {(p, v): spread([c[metric] for c in ok if c["position"] == p and math.isclose(c[param], v)])
-            for p in spec.position for v in spec.grid[param]}
+    cells = {(p, v): [c for c in ok if c["position"] == p and math.isclose(c[param], v)]
+             for p in spec.position for v in spec.grid[param]}
+    return {k: spread([c[metric] for c in cs], seeds=len({c["seed"] for c in cs})) for k, cs in cells.items()}
 
 
 def _f(x: float) -> str:

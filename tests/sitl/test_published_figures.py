@@ -21,8 +21,8 @@ PAGE = Path(__file__).resolve().parents[2] / "docs" / "sweeps.md"
 
 pytestmark = pytest.mark.skipif(not numba_available(), reason="the published tables are the compiled engine's")
 
-SHORT = {"e3_wind": {"seeds": 8}, "wind_and_mass": {"seeds": 5, "random_samples": 2}}
-"""how much of each sweep the check flies: 120 and 160 flights of 45 s, a few seconds on the compiled kernel"""
+SHORT = {"e3_wind": {"seeds": 8}, "wind_and_mass": {"seeds": 10, "random_samples": 1}}
+"""how much of each sweep the check flies: 120 flights of 45 s each, a few seconds on the compiled kernel"""
 
 STALE_E3 = """<!-- table: e3_wind -->
 | position / attitude | median | quartiles | worst |
