@@ -261,6 +261,9 @@ def _check_path(m: Mission) -> None:
     """Every position the mission flies to, and the straight path there, inside the volume."""
     vol = m.safety.volume
     pos: Vec3 = (0.0, 0.0, 0.0)
+    settled: Vec3 = pos
+    """where the reference is known to have arrived: a hold too short to reach its position leaves
+    it anywhere between there and ``pos``, and the next leg may start from either end"""
 
     def go(target: Vec3, key: str, what: str) -> None:
         nonlocal pos
@@ -284,8 +287,13 @@ def _check_path(m: Mission) -> None:
         key = f"steps[{i}]"
         if s.action == "takeoff":
             go((pos[0], pos[1], -s.altitude_m), f"{key}.altitude_m", "the take-off to")
-        elif s.action == "hold" and s.position_ned_m is not None:
-            go(s.position_ned_m, f"{key}.position_ned_m", "the hold position")
+            settled = pos
+        elif s.action == "hold":
+            if s.position_ned_m is not None:
+                go(s.position_ned_m, f"{key}.position_ned_m", "the hold position")
+            far = math.dist(settled, pos)
+            if s.duration_s >= leg_time_s(far, m.trajectory.max_speed_m_s, m.trajectory):
+                settled = pos
         elif s.action == "goto":
             speed = s.speed_m_s if s.speed_m_s is not None else m.trajectory.max_speed_m_s
             why = _filter_speed_problem(speed, m.trajectory) if s.speed_m_s is not None else None
@@ -293,8 +301,15 @@ def _check_path(m: Mission) -> None:
                 raise Problem(f"{key}.speed_m_s", why)
             for j, wp in enumerate(s.waypoints):
                 start = pos
+                if settled != pos:  # the reference may still be short of the last hold's position
+                    why = vol.segment_breach(settled, wp)
+                    if why is not None:
+                        raise Problem(f"{key}.waypoints[{j}]", f"the waypoint {_fmt(wp)} m from {_fmt(settled)}, "
+                                      f"where the reference may still be: outside the safety volume "
+                                      f"({vol.describe()}): {why}")
                 go(wp, f"{key}.waypoints[{j}]", "the waypoint")
-                leg = math.dist(start, wp)
+                leg = max(math.dist(start, wp), math.dist(settled, wp))
+                settled = wp
                 need = leg_time_s(leg, speed, m.trajectory)
                 if s.timeout_s < need:
                     raise Problem(f"{key}.timeout_s", f"expected at least {math.ceil(need)} s to fly the {leg:.1f} m "

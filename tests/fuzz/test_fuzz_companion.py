@@ -33,7 +33,7 @@ def locked_link() -> PymavlinkLink:
     """A link that has locked on to a PX4 vehicle (system 1) by its heartbeat."""
     link = PymavlinkLink("udp://127.0.0.1:14540")
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-    link._parse(mav.heartbeat_encode(2, 12, 0x81, 6 << 16, 4).pack(mav), 0.0)
+    link._parse(mav.heartbeat_encode(2, 12, 0x81, 6 << 16, 4).pack(mav), 0.0, link.address)
     assert link.state.sysid == 1
     return link
 
@@ -41,7 +41,7 @@ def locked_link() -> PymavlinkLink:
 def feed(link: PymavlinkLink, datagrams: list[bytes]) -> None:
     with no_hang(seconds=20):
         for i, data in enumerate(datagrams):
-            link._parse(data, 0.001 * i)
+            link._parse(data, 0.001 * i, link.address)  # from the vehicle's address
 
 
 def check(link: PymavlinkLink) -> None:
@@ -72,7 +72,7 @@ def test_invented_parameter_names_are_bounded(names: list[bytes]) -> None:
     link = locked_link()
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     for i, name in enumerate(names):
-        link._parse(mav.param_value_encode(name, float(i), 9, 65535, i).pack(mav), 0.0)
+        link._parse(mav.param_value_encode(name, float(i), 9, 65535, i).pack(mav), 0.0, link.address)
     check(link)
 
 
