@@ -148,8 +148,8 @@ class MavsdkLink(VehicleLink):
         """The systems MAVSDK has discovered that have an autopilot, by system id."""
         assert self._sdk is not None
         found: dict[int, Any] = {}
-        for system in self._sdk.get_systems():
-            if system.has_autopilot():
+        for system in await self._sdk.get_systems():
+            if await system.has_autopilot():
                 found[await system.get_system_id()] = system
         return found
 
