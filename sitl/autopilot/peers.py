@@ -94,6 +94,9 @@ class Peer:
     state_sent_ms: int = -1
     """the stamp of the newest attitude sent to it (lockstep sends the state at each stop once)"""
     requests: Bucket = field(default_factory=lambda: Bucket(REQUESTS_PER_S, REQUEST_BURST))
+    seq: int = 0
+    """the MAVLink sequence number of the next frame to it: each link numbers its own frames, as
+    PX4 numbers each MAVLink instance's (a receiver tells loss, and two senders, by them)"""
 
     def set_interval(self, msg_id: int, interval_s: float | None, t: float) -> None:
         """Stream ``msg_id`` every ``interval_s`` simulated seconds from now (None: stop it)."""

@@ -221,20 +221,25 @@ class MavlinkServer:
 
     # --- sending -------------------------------------------------------------------------
 
-    def _pack(self, msg: mavlink.MAVLink_message) -> bytes:
-        """The frame, numbered: MAVLink's sequence number counts every frame sent (``pack`` alone
-        does not advance it), which receivers use to see loss and to tell two senders apart."""
+    def _pack(self, msg: mavlink.MAVLink_message, peer: Peer | None = None) -> bytes:
+        """The frame, numbered in ``peer``'s own sequence (a client that is no peer: the vehicle's
+        shared one). ``pack`` alone does not advance the number; a receiver uses it to see loss and
+        to tell two senders apart, so each client sees an unbroken count, whatever the others get."""
+        if peer is None:
+            buf = msg.pack(self.mav)
+            self.mav.seq = (self.mav.seq + 1) % 256
+            return buf
+        shared, self.mav.seq = self.mav.seq, peer.seq
         buf = msg.pack(self.mav)
-        self.mav.seq = (self.mav.seq + 1) % 256
+        peer.seq, self.mav.seq = (peer.seq + 1) % 256, shared
         return buf
 
     def send(self, msg: mavlink.MAVLink_message) -> None:
         """To every peer (STATUSTEXT, parameter changes)."""
         if self.transport is None or not len(self.peers):
             return
-        buf = self._pack(msg)
         for peer in self.peers:
-            self.transport.sendto(buf, peer.addr)
+            self.transport.sendto(self._pack(msg, peer), peer.addr)
         self.stats["sent"] += 1
 
     def reply(self, msg: mavlink.MAVLink_message) -> None:
@@ -244,15 +249,14 @@ class MavlinkServer:
             return
         if self.transport is None:
             return
-        self.transport.sendto(self._pack(msg), self._source)
+        self.transport.sendto(self._pack(msg, self.peers.get(self._source)), self._source)
         self.stats["sent"] += 1
 
     def _send_to(self, peers: list[Peer], msg: mavlink.MAVLink_message) -> None:
         if self.transport is None or not peers:
             return
-        buf = self._pack(msg)
         for peer in peers:
-            self.transport.sendto(buf, peer.addr)
+            self.transport.sendto(self._pack(msg, peer), peer.addr)
         self.stats["sent"] += 1
 
     def say(self, severity: int, text: str) -> None:
@@ -340,15 +344,14 @@ class MavlinkServer:
             else:
                 peer.next_due = math.inf  # set below, once its streams are sent
             plan.append((peer, ids))
-        # each message packed once, in one order for every peer: a signed frame reused for a second
-        # peer must not reach it after a newer one (its receiver would take it for a replay)
+        # each message encoded once, in one order for every peer, and packed for each peer in its own
+        # sequence (signed frames leave in the order they were signed: none looks like a replay)
         order = list(dict.fromkeys(m for peer, ids in sorted(plan, key=lambda p: p[0].addr != table.controller)
                                    for m in ids))
         enc = self.telemetry.encoders
-        packed: dict[int, bytes | None] = {}
+        encoded: dict[int, mavlink.MAVLink_message | None] = {}
         for msg_id in order:
-            msg = enc[msg_id]()
-            packed[msg_id] = None if msg is None else self._pack(msg)
+            encoded[msg_id] = msg = enc[msg_id]()
             if msg is not None:
                 self.stats["sent"] += 1
         rank = {m: i for i, m in enumerate(order)}
@@ -356,9 +359,9 @@ class MavlinkServer:
         sendto = self.transport.sendto
         for peer, ids in plan:
             for msg_id in sorted(ids, key=rank.__getitem__):
-                buf = packed[msg_id]
-                if buf is not None:  # None: nothing valid to say now (e.g. no position)
-                    sendto(buf, peer.addr)
+                msg = encoded[msg_id]
+                if msg is not None:  # None: nothing valid to say now (e.g. no position)
+                    sendto(self._pack(msg, peer), peer.addr)
                     if msg_id == attitude:
                         peer.state_sent_ms = self.telemetry.time_boot_ms
                 peer.sent(msg_id, t)
