@@ -29,11 +29,12 @@ __all__ = ["Setpoint", "PositionTarget", "Tick", "OffboardController", "propagat
 
 MAX_PROPAGATION_S = 0.1
 """the longest a position sample is propagated forward (beyond, it is stale anyway)"""
-MAX_POSITION_ERROR_M = 1.0
+MAX_POSITION_ERROR_M = 5.0
 """the largest position error the controller is shown [m]: a position that jumps (an estimator
-reset too small or too slow to be found, link/resets.py) commands at most what 1 m does. The
-reference moves at a limited speed from where the vehicle is, so flying needs far less (E5's 6 N
-push peaks at 0.26-0.6 m); beyond it the integral and the observer still act, at the 1 m rate."""
+reset too small or too slow to be found, link/resets.py) commands at most what 5 m does. Above
+the errors the controllers really fly: ISM+DO's 45 deg hover peaks at 0.7 m, but the baselines'
+at 3.3 m (PID) and 4.8 m (the autopilot's own, on PX4); at 1 m PID's hover45 was carried out of
+its 10 m volume, the comparison no longer the paper's."""
 
 
 def bounded_position(pos_ned_m: Vec3, ref_ned_m: Vec3, max_error_m: float) -> Vec3:

@@ -68,10 +68,9 @@ def test_a_position_reset_in_a_hold_is_not_flown(sitl, companion, tmp_path, para
     """A 4 m north jump of the estimate mid-hold. Found on the first sample that shows it (4 m in
     17 ms is 240 m/s: beyond anything the velocities, 0.1 m/s here, and the vehicle's 4.4 g can
     explain), it never reaches the controller: the hold goes on as if nothing happened. The bounds:
-    0.10 m from the hold point — one control tick of the largest error the controller is ever
-    shown (1 m, offboard.MAX_POSITION_ERROR_M) moves the vehicle well under 1 cm, and a calm hold
-    stays within a few cm — and 10 deg of tilt (hover needs under 2 deg; 1 m of error held would
-    command atan(0.63 * 1.5^2 * 1 / 6.18) = 13 deg). The old companion flew the jump:
+    0.10 m from the hold point — a calm hold stays within a few cm — and 10 deg of tilt (hover
+    needs under 2 deg; 1 m of error held would command atan(0.63 * 1.5^2 * 1 / 6.18) = 13 deg).
+    The old companion flew the jump:
     the vehicle went 4 m south at up to 40 deg of tilt, and the mission said "completed"."""
     path = tmp_path / "reset.toml"
     path.write_text(mission(param))
