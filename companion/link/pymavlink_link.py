@@ -307,10 +307,12 @@ class PymavlinkLink(VehicleLink):
                     (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), a.t_s, wall)):
                 self._observe(a, wall)
         elif kind == "ODOMETRY":
-            # only its reset counter: the position itself comes from LOCAL_POSITION_NED (one stream)
-            a = self._admit(msg.time_usec * 1e-6, wall)
-            if a is not None and msg.frame_id in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_FRD):
-                st.set_reset_counter(msg.reset_counter, a.t_s)
+            # only its reset counter, placed at the newest believed stamp: the position comes from
+            # LOCAL_POSITION_NED (one stream), and ODOMETRY's time_usec never feeds the clock (PX4's
+            # on the plant ran up to 0.7 s ahead of its time_boot_ms: the clock followed it, and
+            # the attitude and position read as stale, 0.5-0.8 s "outages" in most bench flights)
+            if msg.frame_id in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_FRD) and math.isfinite(st.t):
+                st.set_reset_counter(msg.reset_counter, st.t)
         elif kind == "HIGHRES_IMU":
             if msg.fields_updated & 0x7 == 0x7:
                 self._highres_seen = True
