@@ -38,9 +38,11 @@ SEQ_FORWARD = 32
 """a frame at most this far ahead of a head extends it (31 frames lost in a row at most)"""
 SEQ_BEHIND = 16
 """a frame at most this far behind a head (or equal) is late or repeated, not another sender"""
-SEQ_ADVANCES = 3
+SEQ_ADVANCES = 8
 """frames each of two heads must add after the younger began to count as two senders"""
 MAX_HEADS = 4
+SEQ_STALE = 64
+"""frames of this identity after which a run not extended is over (a second sender's interleaves)"""
 SURVEY_S = 2.0
 """wall seconds the link is listened to after the first autopilot heartbeat before it is flown:
 autopilots send a heartbeat a second, so every one on the link is heard even if one is lost"""
@@ -82,6 +84,8 @@ class VehicleTarget:
 class _Head:
     seq: int
     advances: int = 0
+    last: int = 0
+    """the frame count at which it was begun or last extended"""
 
 
 @dataclass
@@ -91,12 +95,17 @@ class SequenceStreams:
     heads: list[_Head] = field(default_factory=list)
     late: int = 0
     """frames behind a head or repeated (reordered or duplicated on the way)"""
+    frames: int = 0
 
     def add(self, seq: int) -> None:
+        self.frames += 1
+        # a run not extended for SEQ_STALE frames is over (a burst of loss began a new one): kept,
+        # the new run would meet it 256 frames on and read as a second sender
+        self.heads = [h for h in self.heads if self.frames - h.last <= SEQ_STALE]
         ahead = [((seq - h.seq) % 256, h) for h in self.heads if 1 <= (seq - h.seq) % 256 <= SEQ_FORWARD]
         if ahead:
             _, head = min(ahead, key=lambda it: it[0])
-            head.seq, head.advances = seq, head.advances + 1
+            head.seq, head.advances, head.last = seq, head.advances + 1, self.frames
             self.heads = [h for h in self.heads if h is head or h.seq != seq]  # two runs met: one run
             return
         if any((h.seq - seq) % 256 <= SEQ_BEHIND for h in self.heads):
@@ -104,7 +113,7 @@ class SequenceStreams:
             return
         for h in self.heads:
             h.advances = 0
-        self.heads = [*self.heads[-(MAX_HEADS - 1):], _Head(seq)]
+        self.heads = [*self.heads[-(MAX_HEADS - 1):], _Head(seq, last=self.frames)]
 
     @property
     def senders(self) -> int:

@@ -127,3 +127,20 @@ def test_behind_a_router_the_target_system_is_followed_and_the_other_ignored():
     assert (link.state.sysid, link.state.pos_ned_m) == (2, (3.0, 0.0, -1.0))
     assert link.stats["foreign_messages"] == 1 and link.stats["foreign_heartbeats"] == 1
     assert link.heard.systems() == [1, 2]
+
+
+def test_a_burst_of_loss_then_the_wrap_is_still_one_sender():
+    """One sender, 40 frames lost in a row (a new run begins), then on past the wrap: the new run
+    reaches the old one's numbers 256 frames later, which must not read as a second sender (PX4 on
+    the plant, a loaded host: "two autopilots claim system 8" in 1 of 21 bench flights)."""
+    from companion.mavlink.identity import SequenceStreams
+
+    s = SequenceStreams()
+    for seq in range(0, 100):
+        s.add(seq % 256)
+    after = list(range(140, 140 + 600))
+    for i in range(0, len(after) - 1, 2):  # delivered in swapped pairs (two paths, a busy host)
+        after[i], after[i + 1] = after[i + 1], after[i]
+    for seq in after:
+        s.add(seq % 256)
+    assert s.senders == 1
