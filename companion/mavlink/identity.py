@@ -38,7 +38,7 @@ SEQ_FORWARD = 32
 """a frame at most this far ahead of a head extends it (31 frames lost in a row at most)"""
 SEQ_BEHIND = 16
 """a frame at most this far behind a head (or equal) is late or repeated, not another sender"""
-SEQ_ADVANCES = 8
+SEQ_ADVANCES = 3
 """frames each of two heads must add after the younger began to count as two senders"""
 MAX_HEADS = 4
 SEQ_STALE = 64
