@@ -37,7 +37,8 @@ from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
 from companion.mavlink import ftp
 from companion.mavlink.boot_time import boot_ms
 from companion.mavlink.events import MSG_ID_EVENT, EventCatalogue, parse_event
-from companion.mavlink.identity import SURVEY_HEARTBEATS, SURVEY_S, AutopilotsHeard, VehicleTarget, connection_problem
+from companion.mavlink.identity import (SURVEY_FRAMES, SURVEY_HEARTBEATS, SURVEY_S, AutopilotsHeard, VehicleTarget,
+                                        connection_problem)
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID, decode_value, encode_value, param_name
 from companion.mavlink.signing import SignatureCheck, describe_rejections, enable_signing, fingerprint
 from companion.mavlink.stream import SerialEndpoint, TcpEndpoint
@@ -61,7 +62,8 @@ STREAM_RATES_HZ = {
     mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 60.0,
     mavlink.MAVLINK_MSG_ID_HIGHRES_IMU: 100.0,
     mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 5.0,
-    mavlink.MAVLINK_MSG_ID_ODOMETRY: 30.0,  # for its reset_counter: estimator resets announced
+    mavlink.MAVLINK_MSG_ID_ODOMETRY: 10.0,  # for its reset_counter: estimator resets announced (a
+    # change is matched to a jump within 0.25 s); more is parsing a simulator at 20x cannot spare
 }
 
 
@@ -450,7 +452,7 @@ class PymavlinkLink(VehicleLink):
                             f"station or another program on that port?){hint}") from None
         # every autopilot on the link is heard before anything is addressed to the chosen one
         survey_end = min(self._first_heartbeat + SURVEY_S, start + timeout_s)
-        while time.monotonic() < survey_end and self._chosen_heartbeats < SURVEY_HEARTBEATS:
+        while time.monotonic() < survey_end and not self._surveyed():
             await asyncio.sleep(0.01)
         self._refuse_if_not_ours()
         self.progress_line(self._heard_line())
@@ -475,6 +477,13 @@ class PymavlinkLink(VehicleLink):
                                     1e6 / STREAM_RATES_HZ[mavlink.MAVLINK_MSG_ID_HIGHRES_IMU], require_ack=False,
                                     attempts=2)
             await asyncio.sleep(0.3)
+
+    def _surveyed(self) -> bool:
+        """Heard enough of the chosen autopilot to know whether another claims it: two of its own
+        heartbeat periods and SURVEY_FRAMES of its frames (two senders' runs each add several)."""
+        st = self.state
+        frames = sum(s.frames for (si, ci, _), s in self.heard.streams.items() if (si, ci) == (st.sysid, st.compid))
+        return self._chosen_heartbeats >= SURVEY_HEARTBEATS and frames >= SURVEY_FRAMES
 
     def _refuse_if_not_ours(self) -> None:
         """LinkError if this link must not be flown: two claimants of the locked identity, or

@@ -32,7 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 __all__ = ["VehicleTarget", "SequenceStreams", "AutopilotsHeard", "connection_problem", "resolve_target", "SURVEY_S",
-           "SURVEY_HEARTBEATS", "SEQ_FORWARD", "SEQ_BEHIND", "SEQ_ADVANCES"]
+           "SURVEY_HEARTBEATS", "SURVEY_FRAMES", "SEQ_FORWARD", "SEQ_BEHIND", "SEQ_ADVANCES"]
 
 SEQ_FORWARD = 32
 """a frame at most this far ahead of a head extends it (31 frames lost in a row at most)"""
@@ -41,11 +41,11 @@ SEQ_BEHIND = 16
 SEQ_ADVANCES = 3
 """frames each of two heads must add after the younger began to count as two senders"""
 MAX_HEADS = 4
-SEQ_STALE = 64
-"""frames of this identity after which a run not extended is over (a second sender's interleaves)"""
 SURVEY_S = 2.0
 """wall seconds the link is listened to after the first autopilot heartbeat before it is flown:
 autopilots send a heartbeat a second, so every one on the link is heard even if one is lost"""
+SURVEY_FRAMES = 100
+"""...and this many of its frames: two senders of one identity each add SEQ_ADVANCES to a run"""
 SURVEY_HEARTBEATS = 3
 """...or until the chosen autopilot's third heartbeat, if sooner: two of its own periods, which a
 simulated vehicle at 8x sends in 0.25 s of wall time (others on the link run at the same pace)"""
@@ -99,9 +99,6 @@ class SequenceStreams:
 
     def add(self, seq: int) -> None:
         self.frames += 1
-        # a run not extended for SEQ_STALE frames is over (a burst of loss began a new one): kept,
-        # the new run would meet it 256 frames on and read as a second sender
-        self.heads = [h for h in self.heads if self.frames - h.last <= SEQ_STALE]
         ahead = [((seq - h.seq) % 256, h) for h in self.heads if 1 <= (seq - h.seq) % 256 <= SEQ_FORWARD]
         if ahead:
             _, head = min(ahead, key=lambda it: it[0])

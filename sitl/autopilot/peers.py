@@ -25,6 +25,7 @@ controller's address is exempt (its setpoint rate scales with the speed-up).
 from __future__ import annotations
 
 import math
+import zlib
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
@@ -123,6 +124,10 @@ class PeerTable:
         self.default_intervals = dict(default_intervals)
         self.max_peers = max_peers
         self.peers: dict[Address, Peer] = {}
+        self.seq_salt = 0
+        """where each link's sequence numbers start: from this (the vehicle's own port) and the
+        client's address, so two vehicles behind one router do not count in step (PX4's counters
+        start wherever each instance happens to be)"""
         self.controller: Address | None = None
         """the address the newest accepted setpoint came from"""
         self.seen: OrderedDict[Address, int] = OrderedDict()
@@ -145,7 +150,8 @@ class PeerTable:
 
     def add(self, addr: Address, t: float, pinned: bool = False) -> Peer:
         """A new peer with the default streams, all due at ``t`` (simulated); no room check."""
-        peer = Peer(addr, dict(self.default_intervals), {m: t for m in self.default_intervals}, pinned=pinned)
+        peer = Peer(addr, dict(self.default_intervals), {m: t for m in self.default_intervals}, pinned=pinned,
+                    seq=zlib.crc32(f"{self.seq_salt}>{addr}".encode()) & 0xFF)
         peer.next_due = t if peer.due else math.inf
         self.peers[addr] = peer
         self.added += 1

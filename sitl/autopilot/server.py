@@ -805,6 +805,7 @@ class MavlinkServer:
         endpoint = UdpEndpoint(self.datagram_received, self._socket_error)
         endpoint.open(self.config.listen)
         self.transport = endpoint
+        self.peers.seq_salt = endpoint.sockname[1]
 
     def _socket_error(self, exc: OSError) -> None:  # e.g. ICMP port unreachable for a peer
         self.stats["socket_errors"] += 1
