@@ -24,6 +24,7 @@ from pathlib import Path
 
 from .bridge import Bridge
 from .world import SensorFrame
+from .builds import die_with_parent
 
 __all__ = ["ArduPilotPorts", "ArduPilotProcess", "ArduPilotBridge", "servo_packet", "state_line"]
 
@@ -93,7 +94,8 @@ class ArduPilotProcess:
                "--serial0", f"tcp:{p.serial0}", "--serial2", f"udpclient:127.0.0.1:{p.plant}"]
         with open(self.log, "wb") as log:
             self.proc = subprocess.Popen(cmd, cwd=self.workdir, stdout=log, stderr=subprocess.STDOUT,
-                                         stdin=subprocess.DEVNULL, start_new_session=True)
+                                         stdin=subprocess.DEVNULL, start_new_session=True,
+                                         preexec_fn=die_with_parent)
         return self
 
     def alive(self) -> bool:

@@ -12,9 +12,10 @@ says how to build them from their own sources).
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
-__all__ = ["autopilots_root", "find_px4", "find_arducopter", "px4_build", "arducopter_binary"]
+__all__ = ["autopilots_root", "find_px4", "find_arducopter", "px4_build", "arducopter_binary", "die_with_parent"]
 
 
 def autopilots_root() -> Path:
@@ -60,3 +61,21 @@ def find_px4() -> tuple[Path | None, str]:
 
 def find_arducopter() -> tuple[Path | None, str]:
     return arducopter_binary()
+
+
+PR_SET_PDEATHSIG = 1
+"""prctl(2): the signal a child gets when the process that started it dies"""
+
+
+def die_with_parent() -> None:
+    """For ``preexec_fn``: the firmware is killed (SIGKILL) when the bridge that started it dies,
+    however it dies. A bridge killed outright used to leave PX4 running in its own session, still
+    sending to the relay port the next bridge binds: that one relayed two PX4s of one system id
+    ("two autopilots claim system 8", telemetry outages, setpoints sent to the dead flight's PX4).
+    Linux only; elsewhere nothing."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        pass

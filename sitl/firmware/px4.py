@@ -24,6 +24,7 @@ from pathlib import Path
 from .airframe import AIRFRAMES
 from .bridge import Bridge
 from .px4_wire import MotorOutputs, Px4Wire
+from .builds import die_with_parent
 
 __all__ = ["Px4Ports", "Px4Process", "Px4Bridge", "PX4_AIRFRAME"]
 
@@ -104,7 +105,8 @@ class Px4Process:
         with open(self.log, "wb") as log:
             self.proc = subprocess.Popen([str(self.build / "bin" / "px4"), "-d", "-i", str(self.ports.instance),
                                           "-w", str(rootfs), str(etc)], stdout=log, stderr=subprocess.STDOUT,
-                                         stdin=subprocess.DEVNULL, env=env, start_new_session=True)
+                                         stdin=subprocess.DEVNULL, env=env, start_new_session=True,
+                                         preexec_fn=die_with_parent)
         return self
 
     def alive(self) -> bool:
