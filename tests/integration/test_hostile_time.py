@@ -123,4 +123,7 @@ def test_a_vehicle_up_49_7_days_wraps_time_boot_ms_mid_hover_and_the_mission_com
     stats = data["link_stats"]
     assert stats.get("stamp_wrapped") == 1, stats
     assert not any(stats.get(k) for k in ("stamp_backwards", "stamp_jump_forward", "stamp_rebased")), stats
-    assert data["controller_time"]["dropped_s"] == 0.0, data["controller_time"]
+    # before OFFBOARD the vehicle runs free (lockstep holds it only while setpoints fly it): on a
+    # loaded host one gap there may drop a fraction of a second of catch-up (0.074 s seen in CI);
+    # a wrap taken for a jump would drop seconds
+    assert data["controller_time"]["dropped_s"] < 0.25, data["controller_time"]
