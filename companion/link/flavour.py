@@ -1,4 +1,4 @@
-"""What differs between PX4 and ArduPilot on the wire (../shared/MAVLINK.md)."""
+"""What differs between PX4 and ArduPilot on the wire."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 Pure logic over a :class:`~sitl.plant.vehicle.SimVehicle`; no sockets, no clock. The MAVLink edge
 (:mod:`sitl.autopilot.server`) decodes messages into the calls below and encodes the state back.
 
-Rules, as PX4 has them (../shared/MAVLINK.md):
+Rules, as PX4 has them:
 
 - arming needs the vehicle on the ground; disarming in the air needs the force code 21196;
   armed but never lifted off for ``disarm_preflight_s`` disarms, as does ``disarm_land_s`` after

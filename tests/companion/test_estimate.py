@@ -15,6 +15,7 @@ with the truth through that same low-pass.
 
 import csv
 import math
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -218,6 +219,19 @@ def test_repeated_stamps_are_no_new_information_not_a_division_by_zero(tmp_path)
 # --- the logs people have: ArduPilot, PX4 before 1.13, logs that never flew -------------------------
 
 DATA = Path(__file__).resolve().parents[1] / "data"
+_TLOGS = Path(tempfile.mkdtemp(prefix="tlogs-"))
+
+
+def data_file(name: str) -> Path:
+    """A file of tests/data; the ground-station .tlogs are kept there as hex text (``NAME.hex``,
+    recorded by tests/data/make_logs.py) and written out as the bytes a ground station saved."""
+    path = DATA / name
+    if path.exists():
+        return path
+    out = _TLOGS / name
+    if not out.exists():
+        out.write_bytes(bytes.fromhex("".join((DATA / f"{name}.hex").read_text().split())))
+    return out
 STEP_N = 2.0
 """the plant's SIM_FORCE_X in arducopter_force_step.*: north, the only external force in calm air
 while the vehicle holds its point (drag needs speed)"""
@@ -257,8 +271,8 @@ def test_arducopter_logs_recover_the_known_step_force(tmp_path, capsys, name):
     EKF's attitude and the per-cent throttle are finer than that, while a frame, sign or unit error
     is a force east, -2 N or a factor 100); before and after it, while flying, within 0.15 N of
     zero; east within 0.1 N throughout. The airborne column is ArduPilot's own land detector."""
-    log = DATA / name
-    on, off = force_step_times(DATA / "arducopter_force_step.tlog")
+    log = data_file(name)
+    on, off = force_step_times(data_file("arducopter_force_step.tlog"))
     assert main(["estimate", str(log), "--mass", "0.63", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "estimated" in out and "4 motors" not in out and "N per motor x 4" in out, out
@@ -290,7 +304,7 @@ def test_a_log_that_never_leaves_the_ground_is_refused(tmp_path, capsys, name, w
     detector says flying: 0.09 of full thrust holds the ground's reaction), PX4 1.11 spooling up at
     boot (its land detector says flying for 1.1 s, its height sinks 1 m): one line, exit 2, never a
     thrust scale of the weight over an idle thrust."""
-    code = main(["estimate", str(DATA / name), "--mass", "0.63", "--out", str(tmp_path)])
+    code = main(["estimate", str(data_file(name)), "--mass", "0.63", "--out", str(tmp_path)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "never airborne" in err[0] and why in err[0], err
 

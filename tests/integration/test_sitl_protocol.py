@@ -1,4 +1,4 @@
-"""The rest of the wire contract (../shared/MAVLINK.md): identity, requests, intervals, acks."""
+"""The rest of the wire contract: identity, requests, intervals, acks."""
 
 from __future__ import annotations
 
