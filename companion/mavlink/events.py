@@ -20,12 +20,14 @@ from dataclasses import dataclass
 from typing import Any
 
 __all__ = ["MSG_ID_EVENT", "Event", "parse_event", "EventCatalogue", "SEVERITY_OF_LEVEL", "EVENT_CRC_EXTRA",
-           "encode_event_frame", "catalogue_json", "CATALOGUE_PATH"]
+           "encode_event_frame", "catalogue_json", "CATALOGUE_PATH", "CATALOGUE_MAX_BYTES"]
 
 MSG_ID_EVENT = 410
 _HEADER = struct.Struct("<IIHBBB")  # id, event_time_boot_ms, sequence, destination comp, destination sys, log_levels
 _C_TYPES = {"uint8_t": "<B", "int8_t": "<b", "uint16_t": "<H", "int16_t": "<h", "uint32_t": "<I", "int32_t": "<i",
             "uint64_t": "<Q", "int64_t": "<q", "float": "<f"}
+CATALOGUE_MAX_BYTES = 16 << 20
+"""the unpacked catalogue's size limit (PX4 v1.16's is 0.2 MB): an xz bomb stops here"""
 SEVERITY_OF_LEVEL = {0: 0, 1: 1, 2: 2, 3: 3, 4: 4, 5: 5, 6: 6, 7: 7}
 """libevents' external log levels are MAV_SEVERITY's numbers (0 emergency .. 7 debug)"""
 _TAG = re.compile(r"</?[a-zA-Z]+[^>]*>")
@@ -115,10 +117,19 @@ class EventCatalogue:
 
     @classmethod
     def from_bytes(cls, blob: bytes) -> EventCatalogue:
-        """From ``all_events.json`` or its ``.xz`` (ValueError if neither)."""
-        if blob[:6] == b"\xfd7zXZ\x00":
-            blob = lzma.decompress(blob)
-        return cls(json.loads(blob.decode("utf-8")))
+        """From ``all_events.json`` or its ``.xz``: ValueError for anything else (a corrupt or cut
+        file, two vehicles' answers interleaved, more than :data:`CATALOGUE_MAX_BYTES` unpacked)."""
+        try:
+            if blob[:6] == b"\xfd7zXZ\x00":
+                unpack = lzma.LZMADecompressor()
+                blob = unpack.decompress(blob, max_length=CATALOGUE_MAX_BYTES)
+                if not unpack.eof:
+                    raise ValueError(f"cut short or over {CATALOGUE_MAX_BYTES} bytes unpacked")
+            return cls(json.loads(blob.decode("utf-8")))
+        except ValueError as exc:
+            raise ValueError(f"event catalogue unreadable: {exc}") from None
+        except (lzma.LZMAError, EOFError, RecursionError, AttributeError, TypeError) as exc:
+            raise ValueError(f"event catalogue unreadable: {type(exc).__name__}: {exc}") from None
 
     def __len__(self) -> int:
         return len(self._events)
