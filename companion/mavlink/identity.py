@@ -21,7 +21,9 @@ Two senders with the same system and component ids are told apart in two ways:
   head's count, so an outage (the old head never moves again) is not a second sender; two heads
   that each advance :data:`SEQ_ADVANCES` times after the younger one began are. One autopilot
   reaching the router by two links (a radio and a cable) looks the same on the wire and is
-  refused too: its frames arrive twice, with two counters. The limit: a run that meets another
+  refused too: its frames arrive twice, with two counters. Two counters within SEQ_BEHIND of each
+  other make a single run in which the slower sender's frames repeat numbers just seen: a share
+  of repeats above :data:`REPEAT_SHARE` is two senders as well. The limit: a run that meets another
   merges with it, so a sender with under a tenth of the other's rate (a bare heartbeat beside a
   streaming autopilot) is passed over and not seen; two autopilots that both stream telemetry
   are (tests/companion/test_target.py). A forger that wants to be unseen is kept out by signing.
@@ -32,7 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 __all__ = ["VehicleTarget", "SequenceStreams", "AutopilotsHeard", "connection_problem", "resolve_target", "SURVEY_S",
-           "SURVEY_HEARTBEATS", "SURVEY_FRAMES", "SEQ_FORWARD", "SEQ_BEHIND", "SEQ_ADVANCES"]
+           "SURVEY_HEARTBEATS", "SURVEY_FRAMES", "SEQ_FORWARD", "SEQ_BEHIND", "SEQ_ADVANCES", "REPEAT_SHARE"]
 
 SEQ_FORWARD = 32
 """a frame at most this far ahead of a head extends it (31 frames lost in a row at most)"""
@@ -40,6 +42,13 @@ SEQ_BEHIND = 16
 """a frame at most this far behind a head (or equal) is late or repeated, not another sender"""
 SEQ_ADVANCES = 3
 """frames each of two heads must add after the younger began to count as two senders"""
+REPEAT_WINDOW = 2 * SEQ_FORWARD
+"""a number that arrives again within this many frames is a repeat (past it, the 8-bit counter wrapped)"""
+REPEAT_SHARE = 0.25
+"""repeats above this share of one identity's frames are a second sender: a poor link duplicates a
+few percent (and reordering fills gaps, it repeats nothing); two senders with close counters, half"""
+REPEATS_MIN = 20
+"""...and at least this many of them (a few duplicates in the first frames are not a second sender)"""
 MAX_HEADS = 4
 SURVEY_S = 2.0
 """wall seconds the link is listened to after the first autopilot heartbeat before it is flown:
@@ -95,10 +104,18 @@ class SequenceStreams:
     heads: list[_Head] = field(default_factory=list)
     late: int = 0
     """frames behind a head or repeated (reordered or duplicated on the way)"""
+    repeats: int = 0
+    """frames whose number arrived already within the last REPEAT_WINDOW frames (duplicated on the
+    way, or a second sender's counter running close behind the first's)"""
     frames: int = 0
+    seen: list[int] = field(default_factory=lambda: [-REPEAT_WINDOW - 1] * 256)
+    """the frame count at which each sequence number last arrived"""
 
     def add(self, seq: int) -> None:
         self.frames += 1
+        if self.frames - self.seen[seq] <= REPEAT_WINDOW:
+            self.repeats += 1
+        self.seen[seq] = self.frames
         ahead = [((seq - h.seq) % 256, h) for h in self.heads if 1 <= (seq - h.seq) % 256 <= SEQ_FORWARD]
         if ahead:
             _, head = min(ahead, key=lambda it: it[0])
@@ -114,8 +131,12 @@ class SequenceStreams:
 
     @property
     def senders(self) -> int:
-        """How many senders these frames show: 1, or 2 when two runs both went on."""
-        return 2 if sum(h.advances >= SEQ_ADVANCES for h in self.heads) >= 2 else 1
+        """How many senders these frames show: 1, or 2 when two runs both went on, or when repeated
+        numbers are over :data:`REPEAT_SHARE` of the frames (two counters that run within
+        SEQ_BEHIND of each other make one run, every frame of the slower sender a repeat)."""
+        if sum(h.advances >= SEQ_ADVANCES for h in self.heads) >= 2:
+            return 2
+        return 2 if self.repeats >= REPEATS_MIN and self.repeats > REPEAT_SHARE * self.frames else 1
 
 
 @dataclass

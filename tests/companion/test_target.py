@@ -58,6 +58,22 @@ def test_two_interleaved_senders_are_two_even_when_one_sends_a_tenth_as_much(rat
     assert streams.senders == 2
 
 
+@pytest.mark.parametrize("offset", [0, 1, 5, 16, 17, 31, 40, 128, 250])
+def test_two_senders_at_one_rate_are_two_however_close_their_counters_run(offset):
+    """Counters within SEQ_BEHIND of each other make one run, the other sender's frames late
+    (bundled vehicles with salts 5 apart once flew as one in CI); within the survey's frames."""
+    rng = random.Random(offset)
+    streams = SequenceStreams()
+    a, b = 0, offset
+    while streams.frames < 100:
+        for _ in range(rng.choice((1, 1, 2))):  # not strictly alternating: the scheduler's order
+            a = (a + 1) % 256
+            streams.add(a)
+        b = (b + 1) % 256
+        streams.add(b)
+    assert streams.senders == 2
+
+
 def test_the_absent_target_names_the_systems_heard():
     heard = AutopilotsHeard()
     heard.heartbeat(1, 1, ROUTER)
