@@ -15,9 +15,11 @@ that offset (:class:`~companion.link.state.VehicleState` applies it). A reset is
   explain — more than ``½ a_max dt² + v_err dt`` beyond the velocities' trapezoid, where ``a_max``
   is the most the vehicle's thrust and gravity can accelerate it (:meth:`ResetBound.for_vehicle`)
   — and at least ``floor_m`` (smaller corrections are flown as real errors);
-- **announced**: the reset counter changed; then any step beyond the physics, however small, within
-  ``ANNOUNCE_WINDOW_S`` of it (before or after: the counter and the position are separate streams)
-  is the reset. An announcement with no jump (a heading or velocity reset) is counted, not applied.
+- **announced**: the same jump within ``ANNOUNCE_WINDOW_S`` of a change of the reset counter
+  (before or after: the counter and the position are separate streams), labelled so. The floor
+  holds for it too: the counter also counts heading and velocity resets, and PX4's SIH changes it
+  again and again beside 0.09-0.19 m steps, its GPS corrections; re-anchored on each, the
+  companion's frame walked away from PX4's. An announcement with no jump is counted, not applied.
 
 Pure: samples and times in, decisions out; no clock, no I/O.
 """
@@ -25,7 +27,6 @@ Pure: samples and times in, decisions out; no clock, no I/O.
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
 
 from companion.control.vector import Vec3
@@ -96,8 +97,6 @@ class ResetDetector:
     """reset counter changes seen (position, velocity or heading resets)"""
     counter: int | None = None
     _last: tuple[float, Vec3, Vec3] | None = None
-    _small: deque[tuple[float, Vec3]] = field(default_factory=lambda: deque(maxlen=16))
-    """steps beyond the physics but under the floor: an announcement may still claim one"""
     _announced_at: float = -math.inf
 
     def observe(self, t_s: float, pos_ned_m: Vec3, vel_ned_m_s: Vec3) -> PositionReset | None:
@@ -109,33 +108,26 @@ class ResetDetector:
         size = math.hypot(*step)
         if not size > self.bound.explained_m(t_s - last[0]):
             return None
+        if size < self.bound.floor_m:
+            return None
         announced = abs(t_s - self._announced_at) <= ANNOUNCE_WINDOW_S
-        if size >= self.bound.floor_m or announced:
-            self._announced_at = -math.inf if announced else self._announced_at
-            return self._apply(t_s, step, announced)
-        self._small.append((t_s, step))
-        return None
+        if announced:
+            self._announced_at = -math.inf
+        return self._apply(t_s, step, announced)
 
-    def announce(self, counter: int, t_s: float) -> PositionReset | None:
+    def announce(self, counter: int, t_s: float) -> None:
         """The autopilot's reset counter at vehicle time ``t_s`` (the first one sets the baseline):
-        a change claims a jump already taken or a small step just seen, or the next one beyond
-        the physics within ``ANNOUNCE_WINDOW_S``."""
+        a change labels a jump already taken, or the next one, within ``ANNOUNCE_WINDOW_S``."""
         previous, self.counter = self.counter, counter
         if previous is None or counter == previous:
-            return None
+            return
         self.announcements += 1
         for i in range(len(self.resets) - 1, -1, -1):
             r = self.resets[i]
             if abs(r.t_s - t_s) <= ANNOUNCE_WINDOW_S and not r.announced:
                 self.resets[i] = PositionReset(r.t_s, r.shift_ned_m, True)
-                return None
-        near = [s for s in self._small if abs(s[0] - t_s) <= ANNOUNCE_WINDOW_S]
-        if near:
-            t_step, step = max(near, key=lambda s: math.hypot(*s[1]))
-            self._small.clear()
-            return self._apply(t_step, step, True)
+                return
         self._announced_at = t_s
-        return None
 
     def _apply(self, t_s: float, step: Vec3, announced: bool) -> PositionReset:
         o = self.offset_ned_m

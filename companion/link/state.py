@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 
-from .resets import PositionReset, ResetDetector
+from .resets import ResetDetector
 
 __all__ = ["VehicleState", "LANDED_ON_GROUND", "LANDED_IN_AIR", "MAX_POSITION_M", "MAX_SPEED_M_S",
            "MAX_RATE_RAD_S", "MAX_SPECIFIC_FORCE_M_S2"]
@@ -146,11 +146,10 @@ class VehicleState:
         self.t_pos, self.wall_pos = t, wall
         return True
 
-    def set_reset_counter(self, counter: int, t: float) -> PositionReset | None:
-        """The autopilot's estimator reset counter (ODOMETRY ``reset_counter``) at vehicle time ``t``."""
-        reset = self.resets.announce(counter, t)
-        self._anchor()
-        return reset
+    def set_reset_counter(self, counter: int, t: float) -> None:
+        """The autopilot's estimator reset counter (ODOMETRY ``reset_counter``) at vehicle time ``t``:
+        it labels resets, it never moves the position by itself."""
+        self.resets.announce(counter, t)
 
     def _anchor(self) -> None:
         p, o = self.pos_estimate_ned_m, self.resets.offset_ned_m
