@@ -21,7 +21,10 @@ import sys
 import time
 from pathlib import Path
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from companion.mavlink.modes import PX4_MODES  # noqa: E402
 from tests.helpers.processes import Client, SitlProcess  # noqa: E402
 
 
@@ -47,15 +50,17 @@ def achieved_speedup(requested: float, wall_s: float = 5.0) -> tuple[float, dict
 def round_trip(samples: int = 200) -> list[float]:
     s = SitlProcess("--param", "COM_DISARM_PRFLT=120", speedup=1.0)
     c = Client(s.url)
-    c.wait("SYS_STATUS", lambda m: m.onboard_control_sensors_health & (1 << 28))
-    assert c.command(511, 83, 1000) == 0  # ATTITUDE_TARGET every 1 ms
-    assert c.command(400, 1) == 0
+    c.wait("SYS_STATUS", lambda m: m.onboard_control_sensors_health & mavlink.MAV_SYS_STATUS_PREARM_CHECK)
+    every_ms = 1000
+    assert c.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_ATTITUDE_TARGET, every_ms) == 0
+    assert c.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
     q = (1.0, 0.0, 0.0, 0.0)
     end = time.monotonic() + 1.5
     while time.monotonic() < end:
         c.attitude_target(q, thrust=0.10)
         c.recv(0.01)
-    c.m.mav.command_long_send(1, 1, 176, 0, 1, 6, 0, 0, 0, 0, 0)
+    c.m.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                              *PX4_MODES["OFFBOARD"], 0, 0, 0, 0)
     for _ in range(50):
         c.attitude_target(q, thrust=0.10)
         c.recv(0.01)

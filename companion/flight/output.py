@@ -27,12 +27,9 @@ from dataclasses import dataclass
 from companion.control.quaternion import Quat
 from companion.control.rate_command import body_rate_command
 from companion.control.vector import Vec3
+from companion.mavlink.setpoints import ATTITUDE_IGNORED, RATES_IGNORED, ROLL_PITCH_RATES_IGNORED
 
-__all__ = ["OUTPUT_MODES", "Output", "choose_output", "IGNORE_ROLL_RATE", "IGNORE_PITCH_RATE", "IGNORE_YAW_RATE",
-           "IGNORE_THRUST", "IGNORE_ATTITUDE"]
-
-IGNORE_ROLL_RATE, IGNORE_PITCH_RATE, IGNORE_YAW_RATE = 1, 2, 4
-IGNORE_THRUST, IGNORE_ATTITUDE = 64, 128
+__all__ = ["OUTPUT_MODES", "Output", "choose_output"]
 
 OUTPUT_MODES = ("auto", "attitude", "rates", "attitude_rates")
 
@@ -48,12 +45,12 @@ class Output:
     @property
     def type_mask(self) -> int:
         if self.mode == "rates":
-            return IGNORE_ATTITUDE
+            return ATTITUDE_IGNORED
         if self.mode == "attitude_rates":
             return 0
         if self.autopilot == "ardupilot":
-            return IGNORE_ROLL_RATE | IGNORE_PITCH_RATE | IGNORE_YAW_RATE
-        return IGNORE_ROLL_RATE | IGNORE_PITCH_RATE
+            return RATES_IGNORED
+        return ROLL_PITCH_RATES_IGNORED
 
     def rates(self, q: Quat, q_d: Quat, omega_d_rad_s: Vec3) -> Vec3:
         """The body rates to put on the wire (ignored ones are sent as 0)."""

@@ -27,10 +27,11 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
 from companion.control.params import PositionGains
 from companion.control.vector import clip_norm
 from companion.link import LinkError, VehicleLink, open_link
-from companion.link.state import LANDED_IN_AIR
 from companion.link.resets import UNSTABLE_RESETS, UNSTABLE_WINDOW_S, ResetBound
 from companion.mavlink.identity import VehicleTarget, resolve_target
 from companion.mavlink.signing import fingerprint
@@ -630,7 +631,7 @@ class Flight:
     async def _check_not_someone_elses(self) -> None:
         """An armed or flying vehicle is someone's: the companion does not take it without being told."""
         st = self.link.state
-        flying = st.armed or st.landed_state == LANDED_IN_AIR
+        flying = st.armed or st.landed_state == mavlink.MAV_LANDED_STATE_IN_AIR
         if flying and not self.opt.take_over:
             raise MissionAbort(f"the vehicle is already {'armed' if st.armed else 'flying'} (mode {st.mode}): "
                                "another operator may be flying it. To fly it from where it is, start again with "
@@ -651,8 +652,9 @@ class Flight:
         """Why ``--take-over`` must leave this vehicle alone now (supervisor.take_over_refusal)."""
         st = self.link.state
         return supervisor.take_over_refusal(supervisor.TakeOverView(
-            armed=st.armed, in_air=st.landed_state == LANDED_IN_AIR, on_ground=st.on_ground,
-            landed_known=st.landed_state != 0, mode=st.mode, autopilot=st.autopilot, failsafe=st.failsafe,
+            armed=st.armed, in_air=st.landed_state == mavlink.MAV_LANDED_STATE_IN_AIR, on_ground=st.on_ground,
+            landed_known=st.landed_state != mavlink.MAV_LANDED_STATE_UNDEFINED, mode=st.mode, autopilot=st.autopilot,
+            failsafe=st.failsafe,
             has_navigation=st.has_navigation, vel_ned_m_s=st.vel_ned_m_s))
 
     async def _preflight(self) -> dict:

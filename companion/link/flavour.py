@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from companion.mavlink.modes import (COPTER_MODES, MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4, PX4_MODES,
-                                     copter_mode_name, px4_mode_name)
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from companion.mavlink.modes import COPTER_MODES, PX4_MODES, copter_mode_name, px4_mode_name
 
 __all__ = ["Flavour", "PX4", "ARDUPILOT", "flavour_for"]
 
@@ -31,4 +32,4 @@ with no RC (throttle low) it descended at 2.2 m/s after a 2 s telemetry outage a
 
 
 def flavour_for(autopilot: int) -> Flavour | None:
-    return {MAV_AUTOPILOT_PX4: PX4, MAV_AUTOPILOT_ARDUPILOTMEGA: ARDUPILOT}.get(autopilot)
+    return {mavlink.MAV_AUTOPILOT_PX4: PX4, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA: ARDUPILOT}.get(autopilot)

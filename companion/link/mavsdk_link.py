@@ -35,6 +35,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from companion.link.clock import VehicleClock
 from companion.mavlink.boot_time import boot_ms
 from companion.mavlink.identity import SURVEY_S, VehicleTarget
+from companion.mavlink.setpoints import POSITION_TARGET_MASK
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID
 from companion.link.stamps import StampGate
 from companion.control.quaternion import Quat
@@ -46,6 +47,10 @@ from .url import parse_endpoint
 from .flavour import PX4, Flavour
 
 __all__ = ["MavsdkLink"]
+
+LANDED_STATES = {"ON_GROUND": mavlink.MAV_LANDED_STATE_ON_GROUND, "IN_AIR": mavlink.MAV_LANDED_STATE_IN_AIR,
+                 "TAKING_OFF": mavlink.MAV_LANDED_STATE_TAKEOFF, "LANDING": mavlink.MAV_LANDED_STATE_LANDING}
+"""MAVSDK's LandedState names -> MAV_LANDED_STATE (anything else: UNDEFINED)"""
 
 
 class _Stop(Exception):
@@ -250,7 +255,7 @@ class MavsdkLink(VehicleLink):
 
     async def _landed(self) -> None:
         async for landed in self.telemetry.subscribe_landed_state():
-            self.state.landed_state = {"ON_GROUND": 1, "IN_AIR": 2, "TAKING_OFF": 3, "LANDING": 4}.get(landed.name, 0)
+            self.state.landed_state = LANDED_STATES.get(landed.name, mavlink.MAV_LANDED_STATE_UNDEFINED)
 
     async def _health(self) -> None:
         async for h in self.telemetry.subscribe_health():
@@ -302,8 +307,10 @@ class MavsdkLink(VehicleLink):
         await self._do("take-off", self.action.takeoff())
 
     async def start_offboard(self) -> None:
-        fields = {"target_system": self.state.sysid, "target_component": 1, "command": 176, "confirmation": 0,
-                  "param1": 1.0, "param2": 6.0, "param3": 0.0, "param4": 0.0, "param5": 0.0, "param6": 0.0,
+        main, sub = PX4.offboard_mode
+        fields = {"target_system": self.state.sysid, "target_component": 1, "command": mavlink.MAV_CMD_DO_SET_MODE,
+                  "confirmation": 0, "param1": float(mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED),
+                  "param2": float(main), "param3": float(sub), "param4": 0.0, "param5": 0.0, "param6": 0.0,
                   "param7": 0.0}
         cmd = MavlinkMessage(message_name="COMMAND_LONG", system_id=245, component_id=190,
                              target_system_id=self.state.sysid, target_component_id=1, fields_json=json.dumps(fields))
@@ -313,7 +320,7 @@ class MavsdkLink(VehicleLink):
             result = json.loads(ack.fields_json).get("result", -1) if ack.fields_json else -1
         except Exception as exc:
             raise LinkError(f"offboard mode: {exc}") from None
-        if result != 0:
+        if result != mavlink.MAV_RESULT_ACCEPTED:
             reason = await self._refusal_reason(before)
             raise LinkError(f"offboard mode refused (MAV_RESULT {result}){': ' + reason if reason else ''}")
 
@@ -344,16 +351,17 @@ class MavsdkLink(VehicleLink):
         vx, vy, vz = (float(c) for c in vel_ned_m_s)
         ax, ay, az = (float(c) for c in accel_ned_m_s2)
         fields = {"time_boot_ms": boot_ms(self.state.t),
-                  "target_system": self.state.sysid, "target_component": 1, "coordinate_frame": 1,
-                  "type_mask": 2048, "x": x, "y": y, "z": z, "vx": vx, "vy": vy, "vz": vz, "afx": ax, "afy": ay,
-                  "afz": az, "yaw": float(yaw_rad), "yaw_rate": 0.0}
+                  "target_system": self.state.sysid, "target_component": 1,
+                  "coordinate_frame": mavlink.MAV_FRAME_LOCAL_NED, "type_mask": POSITION_TARGET_MASK,
+                  "x": x, "y": y, "z": z, "vx": vx, "vy": vy, "vz": vz, "afx": ax, "afy": ay, "afz": az,
+                  "yaw": float(yaw_rad), "yaw_rate": 0.0}
         self._queue_direct(MavlinkMessage(message_name="SET_POSITION_TARGET_LOCAL_NED", system_id=245,
                                           component_id=190, target_system_id=self.state.sysid, target_component_id=1,
                                           fields_json=json.dumps(fields)))
         if self.traffic is not None:
             self.traffic(self._log_mav.set_position_target_local_ned_encode(
-                fields["time_boot_ms"], self.state.sysid, 1, 1, 2048, x, y, z, vx, vy, vz, ax, ay, az,
-                float(yaw_rad), 0.0).pack(self._log_mav))
+                fields["time_boot_ms"], self.state.sysid, 1, mavlink.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
+                x, y, z, vx, vy, vz, ax, ay, az, float(yaw_rad), 0.0).pack(self._log_mav))
 
     def send_debug(self, t_s: float, vectors: dict[str, Vec3], values: dict[str, float]) -> None:
         t_us, t_ms = int(max(t_s, 0.0) * 1e6), boot_ms(t_s)

@@ -36,9 +36,11 @@ from .url import Endpoint, parse_endpoint
 from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
 from companion.mavlink import ftp
 from companion.mavlink.boot_time import boot_ms
+from companion.mavlink.commands import FORCE_ARM_DISARM, result_text
 from companion.mavlink.events import MSG_ID_EVENT, EventCatalogue, parse_event
 from companion.mavlink.identity import (SURVEY_FRAMES, SURVEY_HEARTBEATS, SURVEY_S, AutopilotsHeard, VehicleTarget,
                                         connection_problem)
+from companion.mavlink.setpoints import POSITION_TARGET_MASK
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID, decode_value, encode_value, param_name
 from companion.mavlink.signing import SignatureCheck, describe_rejections, enable_signing, fingerprint
 from companion.mavlink.stream import SerialEndpoint, TcpEndpoint
@@ -50,9 +52,8 @@ __all__ = ["PymavlinkLink"]
 QUEUE_SIZE = 2000
 NOTHING_HEARD_S = 3.0
 """wall seconds of complete silence after which connecting gives up and says what to check"""
-_RESULTS = {1: "temporarily rejected", 2: "denied", 3: "unsupported", 4: "failed", 5: "in progress", 6: "cancelled"}
-POSITION_TARGET_MASK = 2048
-"""SET_POSITION_TARGET_LOCAL_NED: position, velocity, acceleration and yaw used; yaw rate ignored"""
+ACCEL_UPDATED = mavlink.HIGHRES_IMU_UPDATED_XACC | mavlink.HIGHRES_IMU_UPDATED_YACC | mavlink.HIGHRES_IMU_UPDATED_ZACC
+"""HIGHRES_IMU fields_updated: all three accelerations are new"""
 MAX_PARAMS = 4096
 """parameter values kept (PX4 has about 1500)"""
 
@@ -316,7 +317,7 @@ class PymavlinkLink(VehicleLink):
             if msg.frame_id in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_FRD) and math.isfinite(st.t):
                 st.set_reset_counter(msg.reset_counter, st.t)
         elif kind == "HIGHRES_IMU":
-            if msg.fields_updated & 0x7 == 0x7:
+            if msg.fields_updated & ACCEL_UPDATED == ACCEL_UPDATED:
                 self._highres_seen = True
                 a = self._admit(msg.time_usec * 1e-6, wall)
                 if a is not None and self._valid(st.set_imu((msg.xacc, msg.yacc, msg.zacc), a.t_s, wall)):
@@ -575,7 +576,8 @@ class PymavlinkLink(VehicleLink):
 
     async def _prepare_ardupilot(self) -> None:
         """ArduPilot sends only HEARTBEAT and STATUSTEXT until streams are asked for."""
-        self._send(self.mav.request_data_stream_encode(self.state.sysid, self.state.compid, 0, 10, 1))
+        self._send(self.mav.request_data_stream_encode(self.state.sysid, self.state.compid,
+                                                       mavlink.MAV_DATA_STREAM_ALL, 10, 1))
 
     # --- commands --------------------------------------------------------------------------
 
@@ -611,7 +613,7 @@ class PymavlinkLink(VehicleLink):
         result = await self.command_long(command, *params)
         if result != mavlink.MAV_RESULT_ACCEPTED:
             reason = await self._refusal_reason(before)
-            raise LinkError(f"{what} refused ({_RESULTS.get(result, f'MAV_RESULT {result}')})"
+            raise LinkError(f"{what} refused ({result_text(result)})"
                             f"{': ' + reason if reason else ''}")
 
     async def _set_mode(self, mode: tuple[int, int], what: str) -> None:
@@ -626,7 +628,8 @@ class PymavlinkLink(VehicleLink):
         await self._expect(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, what="arming")
 
     async def disarm(self, force: bool = False) -> None:
-        await self._expect(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 21196 if force else 0, what="disarming")
+        await self._expect(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, FORCE_ARM_DISARM if force else 0,
+                           what="disarming")
 
     async def takeoff(self, altitude_m: float) -> None:
         if self.flavour is PX4:
@@ -646,7 +649,7 @@ class PymavlinkLink(VehicleLink):
         result = await self.command_long(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
                                          *self.flavour.hold_mode, attempts=attempts)
         if result != mavlink.MAV_RESULT_ACCEPTED:
-            raise LinkError(f"hold mode refused ({_RESULTS.get(result, f'MAV_RESULT {result}')})")
+            raise LinkError(f"hold mode refused ({result_text(result)})")
 
     async def land(self) -> None:
         assert self.flavour is not None

@@ -11,16 +11,15 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 
 from .resets import ResetDetector
 
-__all__ = ["VehicleState", "LANDED_ON_GROUND", "LANDED_IN_AIR", "MAX_POSITION_M", "MAX_SPEED_M_S",
+__all__ = ["VehicleState", "MAX_POSITION_M", "MAX_SPEED_M_S",
            "MAX_RATE_RAD_S", "MAX_SPECIFIC_FORCE_M_S2"]
-
-LANDED_ON_GROUND = 1
-LANDED_IN_AIR = 2
 
 # telemetry beyond these is not a multicopter's, it is a fault: refused, never fed to the controller
 MAX_POSITION_M = 1e5
@@ -49,7 +48,7 @@ class VehicleState:
     """the flavour's mode name (PX4: OFFBOARD, HOLD, TAKEOFF, LAND, ...; ArduPilot: GUIDED, LOITER, ...)"""
     offboard: bool = False
     """the autopilot is in the mode that flies our attitude setpoints"""
-    landed_state: int = 0
+    landed_state: int = mavlink.MAV_LANDED_STATE_UNDEFINED
     """MAV_LANDED_STATE from EXTENDED_SYS_STATE (0: the autopilot does not say)"""
     failsafe: bool = False
     """the heartbeat's system status is MAV_STATE_CRITICAL or EMERGENCY: PX4 and ArduPilot say so while
@@ -172,7 +171,7 @@ class VehicleState:
     @property
     def on_ground(self) -> bool:
         """The autopilot says the vehicle is on the ground (MAV_LANDED_STATE_ON_GROUND)."""
-        return self.landed_state == 1
+        return self.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND
 
     @property
     def has_navigation(self) -> bool:

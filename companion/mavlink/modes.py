@@ -9,12 +9,7 @@ ArduCopter's ``custom_mode`` and DO_SET_MODE param2 are the mode number
 from __future__ import annotations
 
 __all__ = ["PX4_MODES", "COPTER_MODES", "px4_custom_mode", "px4_mode_name", "copter_mode_name",
-           "copter_mode_number", "MAV_AUTOPILOT_ARDUPILOTMEGA", "MAV_AUTOPILOT_PX4", "CUSTOM_MODE_ENABLED"]
-
-MAV_AUTOPILOT_ARDUPILOTMEGA = 3
-MAV_AUTOPILOT_PX4 = 12
-CUSTOM_MODE_ENABLED = 1
-"""MAV_MODE_FLAG_CUSTOM_MODE_ENABLED: DO_SET_MODE param1 and HEARTBEAT base_mode"""
+           "copter_mode_number"]
 
 PX4_MODES: dict[str, tuple[int, int]] = {
     "MANUAL": (1, 0), "ALTCTL": (2, 0), "POSCTL": (3, 0), "ACRO": (5, 0), "OFFBOARD": (6, 0),

@@ -55,9 +55,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeGuard
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
 from companion.config import ConfigError, read_text
 from companion.control.params import TrajectoryParams
 from companion.control.vector import Vec3
+from companion.mavlink.commands import command_name
 
 from .envelope import (
     ENVELOPE,
@@ -82,27 +85,43 @@ EARTH_RADIUS_M = 6378137.0
 Path_ = tuple[str | int, ...]
 """a place in the JSON document: ("mission", "items", 3, "params", 6)"""
 
-TAKEOFF, WAYPOINT, LOITER_TIME, LAND, RTL, DELAY, CHANGE_SPEED = 22, 16, 19, 21, 20, 93, 178
+TAKEOFF, WAYPOINT = mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_WAYPOINT
+LOITER_TIME = mavlink.MAV_CMD_NAV_LOITER_TIME
+LAND, RTL, DELAY = mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, mavlink.MAV_CMD_NAV_DELAY
+CHANGE_SPEED = mavlink.MAV_CMD_DO_CHANGE_SPEED
 
-SKIPPED = {
-    189: "DO_LAND_START (a marker)", 203: "DO_DIGICAM_CONTROL (camera)", 205: "DO_MOUNT_CONTROL (gimbal)",
-    206: "DO_SET_CAM_TRIGG_DIST (camera)", 214: "DO_SET_CAM_TRIGG_INTERVAL (camera)",
-    530: "SET_CAMERA_MODE (camera)", 531: "SET_CAMERA_ZOOM (camera)", 532: "SET_CAMERA_FOCUS (camera)",
-    1000: "DO_GIMBAL_MANAGER_PITCHYAW (gimbal)", 1001: "DO_GIMBAL_MANAGER_CONFIGURE (gimbal)",
-    2000: "IMAGE_START_CAPTURE (camera)", 2001: "IMAGE_STOP_CAPTURE (camera)",
-    2500: "VIDEO_START_CAPTURE (camera)", 2501: "VIDEO_STOP_CAPTURE (camera)",
-}
+
+def _named(notes: dict[int, str]) -> dict[int, str]:
+    """command -> its name as pymavlink spells it, with the note in brackets if there is one"""
+    return {cmd: command_name(cmd) + (f" ({note})" if note else "") for cmd, note in notes.items()}
+
+
+SKIPPED = _named({
+    mavlink.MAV_CMD_DO_LAND_START: "a marker", mavlink.MAV_CMD_DO_DIGICAM_CONTROL: "camera",
+    mavlink.MAV_CMD_DO_MOUNT_CONTROL: "gimbal", mavlink.MAV_CMD_DO_SET_CAM_TRIGG_DIST: "camera",
+    mavlink.MAV_CMD_DO_SET_CAM_TRIGG_INTERVAL: "camera", mavlink.MAV_CMD_SET_CAMERA_MODE: "camera",
+    mavlink.MAV_CMD_SET_CAMERA_ZOOM: "camera", mavlink.MAV_CMD_SET_CAMERA_FOCUS: "camera",
+    mavlink.MAV_CMD_DO_GIMBAL_MANAGER_PITCHYAW: "gimbal", mavlink.MAV_CMD_DO_GIMBAL_MANAGER_CONFIGURE: "gimbal",
+    mavlink.MAV_CMD_IMAGE_START_CAPTURE: "camera", mavlink.MAV_CMD_IMAGE_STOP_CAPTURE: "camera",
+    mavlink.MAV_CMD_VIDEO_START_CAPTURE: "camera", mavlink.MAV_CMD_VIDEO_STOP_CAPTURE: "camera",
+})
 """commands that leave the flight path alone: skipped, and listed in the description"""
 
-COMMAND_NAMES = {
-    17: "NAV_LOITER_UNLIM (never ends)", 18: "NAV_LOITER_TURNS", 31: "NAV_LOITER_TO_ALT", 82: "NAV_SPLINE_WAYPOINT",
-    84: "NAV_VTOL_TAKEOFF", 85: "NAV_VTOL_LAND", 112: "CONDITION_DELAY", 114: "CONDITION_DISTANCE",
-    115: "CONDITION_YAW", 177: "DO_JUMP (a loop)", 179: "DO_SET_HOME", 181: "DO_SET_RELAY", 183: "DO_SET_SERVO",
-    184: "DO_REPEAT_SERVO", 195: "DO_SET_ROI_LOCATION (turns the vehicle)", 197: "DO_SET_ROI_NONE",
-    201: "DO_SET_ROI (turns the vehicle)", 211: "DO_GRIPPER", 3000: "DO_VTOL_TRANSITION",
-}
+COMMAND_NAMES = _named({
+    mavlink.MAV_CMD_NAV_LOITER_UNLIM: "never ends", mavlink.MAV_CMD_NAV_LOITER_TURNS: "",
+    mavlink.MAV_CMD_NAV_LOITER_TO_ALT: "", mavlink.MAV_CMD_NAV_SPLINE_WAYPOINT: "",
+    mavlink.MAV_CMD_NAV_VTOL_TAKEOFF: "", mavlink.MAV_CMD_NAV_VTOL_LAND: "", mavlink.MAV_CMD_CONDITION_DELAY: "",
+    mavlink.MAV_CMD_CONDITION_DISTANCE: "", mavlink.MAV_CMD_CONDITION_YAW: "", mavlink.MAV_CMD_DO_JUMP: "a loop",
+    mavlink.MAV_CMD_DO_SET_HOME: "", mavlink.MAV_CMD_DO_SET_RELAY: "", mavlink.MAV_CMD_DO_SET_SERVO: "",
+    mavlink.MAV_CMD_DO_REPEAT_SERVO: "", mavlink.MAV_CMD_DO_SET_ROI_LOCATION: "turns the vehicle",
+    mavlink.MAV_CMD_DO_SET_ROI_NONE: "", mavlink.MAV_CMD_DO_SET_ROI: "turns the vehicle",
+    mavlink.MAV_CMD_DO_GRIPPER: "", mavlink.MAV_CMD_DO_VTOL_TRANSITION: "",
+})
+"""unsupported commands named in the refusal"""
 
-_RELATIVE, _AMSL, _TERRAIN = (3, 6), (0, 5), (10, 11)
+_RELATIVE = (mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT)
+_AMSL = (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT)
+_TERRAIN = (mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT, mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT)
 _MODE_FRAMES = {1: _RELATIVE, 2: _AMSL, 3: _AMSL, 4: _TERRAIN}
 _MODE_NAMES = {1: "relative to launch", 2: "AMSL", 3: "calculated above terrain", 4: "terrain frame"}
 
@@ -208,7 +227,8 @@ class _Converter:
             raise _Refusal(where + ("frame",), f"frame {frame} is terrain-relative (MAV_FRAME_GLOBAL_TERRAIN_ALT): the "
                            "companion flies heights above home and has no terrain model; in QGroundControl choose "
                            "'Relative to launch' or 'AMSL'")
-        raise _Refusal(where + ("frame",), f"expected frame 3 (relative to home), 0 (AMSL) or 10 (terrain), "
+        raise _Refusal(where + ("frame",), f"expected frame {_RELATIVE[0]} (relative to home), {_AMSL[0]} (AMSL) or "
+                       f"{_TERRAIN[0]} (terrain), "
                        f"got {_json(frame)}")
 
     # --- items --------------------------------------------------------------------------------
@@ -248,8 +268,9 @@ class _Converter:
         else:
             name = COMMAND_NAMES.get(cmd, "")
             raise _Refusal(where + ("command",), f"command {cmd}{' ' + name if name else ''} is not supported; "
-                           "expected 22 take-off, 16 waypoint, 19 loiter time, 178 change speed, 93 delay, 21 land, "
-                           "20 RTL, or a camera/gimbal command (skipped)")
+                           f"expected {TAKEOFF} take-off, {WAYPOINT} waypoint, {LOITER_TIME} loiter time, "
+                           f"{CHANGE_SPEED} change speed, {DELAY} delay, {LAND} land, {RTL} RTL, or a camera/gimbal "
+                           "command (skipped)")
 
     def takeoff(self, item: dict[str, Any], params: list[Any], where: Path_) -> None:
         if self.phase != "ground":
@@ -268,7 +289,7 @@ class _Converter:
 
     def waypoint(self, item: dict[str, Any], params: list[Any], where: Path_, cmd: int) -> None:
         if self.phase != "air":
-            raise _Refusal(where, "a waypoint before the take-off item (22): expected the take-off first")
+            raise _Refusal(where, f"a waypoint before the take-off item ({TAKEOFF}): expected the take-off first")
         if cmd == WAYPOINT and params[3] is not None and not math.isnan(params[3]):
             raise _Refusal(where + ("params", 3), f"a waypoint yaw is not supported; expected null (QGroundControl's "
                            f"empty heading), got {_json(params[3])}")
@@ -622,10 +643,10 @@ def _convert(plan: Any) -> tuple[_Converter | None, tuple[FenceCircle, ...], tup
         if conv.waypoints > MAX_WAYPOINTS:
             raise _Refusal(("mission", "items", n), f"expected at most {MAX_WAYPOINTS} waypoints")
     if items and conv.phase == "ground":
-        raise _Refusal(("mission", "items"), "expected a take-off item (command 22)")
+        raise _Refusal(("mission", "items"), f"expected a take-off item (command {TAKEOFF})")
     if conv.phase == "air":
-        raise _Refusal(("mission", "items", len(items) - 1), "the mission ends in the air: expected a land (21) or "
-                       "RTL (20) item last")
+        raise _Refusal(("mission", "items", len(items) - 1), f"the mission ends in the air: expected a land ({LAND}) "
+                       f"or RTL ({RTL}) item last")
     circles, polygons = _fences(fence, conv)
     return (conv if items else None), circles, polygons
 

@@ -31,8 +31,19 @@ from collections import deque
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+from pymavlink.dialects.v20.ardupilotmega import (
+    MAV_CMD_COMPONENT_ARM_DISARM,
+    MAV_CMD_DO_SET_MODE,
+    MAV_CMD_NAV_LAND,
+    MAV_CMD_NAV_LOITER_UNLIM,
+    MAV_CMD_NAV_RETURN_TO_LAUNCH,
+    MAV_CMD_NAV_TAKEOFF,
+)
+
 from companion.control import quaternion as quat
 from companion.mavlink import modes
+from companion.mavlink.commands import FORCE_ARM_DISARM
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
 from companion.control.trajectory import PositionReference, ReferenceFilter
 from companion.control.vector import ZERO3, Vec3, sub
@@ -101,29 +112,29 @@ def mode_from_command(flavour: str, p2: int, p3: int) -> Mode | None:
 class LandedState(enum.IntEnum):
     """MAV_LANDED_STATE"""
 
-    UNDEFINED = 0
-    ON_GROUND = 1
-    IN_AIR = 2
-    TAKEOFF = 3
-    LANDING = 4
+    UNDEFINED = mavlink.MAV_LANDED_STATE_UNDEFINED
+    ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
+    IN_AIR = mavlink.MAV_LANDED_STATE_IN_AIR
+    TAKEOFF = mavlink.MAV_LANDED_STATE_TAKEOFF
+    LANDING = mavlink.MAV_LANDED_STATE_LANDING
 
 
 class MavResult(enum.IntEnum):
-    ACCEPTED = 0
-    TEMPORARILY_REJECTED = 1
-    DENIED = 2
-    UNSUPPORTED = 3
-    FAILED = 4
+    ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
+    TEMPORARILY_REJECTED = mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+    DENIED = mavlink.MAV_RESULT_DENIED
+    UNSUPPORTED = mavlink.MAV_RESULT_UNSUPPORTED
+    FAILED = mavlink.MAV_RESULT_FAILED
 
 
 class Severity(enum.IntEnum):
     """MAV_SEVERITY"""
 
-    CRITICAL = 2
-    ERROR = 3
-    WARNING = 4
-    NOTICE = 5
-    INFO = 6
+    CRITICAL = mavlink.MAV_SEVERITY_CRITICAL
+    ERROR = mavlink.MAV_SEVERITY_ERROR
+    WARNING = mavlink.MAV_SEVERITY_WARNING
+    NOTICE = mavlink.MAV_SEVERITY_NOTICE
+    INFO = mavlink.MAV_SEVERITY_INFO
 
 
 @dataclass(frozen=True)
@@ -202,13 +213,7 @@ class CommandResult(NamedTuple):
     reason: str = ""
 
 
-MAV_CMD_NAV_LOITER_UNLIM = 17
-MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
-MAV_CMD_NAV_LAND = 21
-MAV_CMD_NAV_TAKEOFF = 22
-MAV_CMD_DO_SET_MODE = 176
-MAV_CMD_COMPONENT_ARM_DISARM = 400
-FORCE_DISARM = 21196.0
+FORCE_DISARM = float(FORCE_ARM_DISARM)
 
 OFFBOARD_LOST_DESCENDING = "offboard lost, descending"
 
@@ -333,7 +338,7 @@ class Autopilot:
         if command == MAV_CMD_DO_SET_MODE:
             if not (math.isfinite(p[0]) and math.isfinite(p[1]) and math.isfinite(p[2])):
                 return self._deny("mode change: non-finite parameters")
-            if not int(p[0]) & 1:
+            if not int(p[0]) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
                 return self._deny("mode change: base mode lacks the custom flag")
             mode = mode_from_command(self.params.flavour, int(p[1]), int(p[2]))
             if mode is None:
@@ -547,9 +552,11 @@ class Autopilot:
         ``max_rate_setpoint_rad_s``, and any setpoint from a system other than the one that
         took offboard control while in OFFBOARD.
         """
-        use_rates = (not type_mask & 1, not type_mask & 2, not type_mask & 4)
-        use_thrust = not type_mask & 64
-        use_att = not type_mask & 128
+        use_rates = (not type_mask & mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_ROLL_RATE_IGNORE,
+                     not type_mask & mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_PITCH_RATE_IGNORE,
+                     not type_mask & mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE)
+        use_thrust = not type_mask & mavlink.ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE
+        use_att = not type_mask & mavlink.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
         reason = None
         if use_att:
             n = math.sqrt(sum(c * c for c in q)) if all(math.isfinite(c) for c in q) else math.nan

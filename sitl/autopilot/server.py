@@ -30,6 +30,13 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
+# commands answered by the server itself (the rest go to the autopilot)
+from pymavlink.dialects.v20.ardupilotmega import (
+    MAV_CMD_GET_HOME_POSITION,
+    MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+    MAV_CMD_REQUEST_MESSAGE,
+    MAV_CMD_SET_MESSAGE_INTERVAL,
+)
 
 from companion.control import quaternion as quat
 from companion.control.vector import Vec3
@@ -78,12 +85,6 @@ REQUESTS = frozenset({"COMMAND_LONG", "COMMAND_INT", "PARAM_REQUEST_LIST", "PARA
                       "PING", "TIMESYNC", "REQUEST_DATA_STREAM", "MISSION_REQUEST_LIST", "LOG_REQUEST_LIST",
                       "SERIAL_CONTROL", "MISSION_COUNT", "MISSION_CLEAR_ALL"})
 """messages that cost an answer: each client's are limited (sitl.autopilot.peers.REQUESTS_PER_S)"""
-
-# commands answered by the server itself (the rest go to the autopilot)
-MAV_CMD_SET_MESSAGE_INTERVAL = 511
-MAV_CMD_REQUEST_MESSAGE = 512
-MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
-MAV_CMD_GET_HOME_POSITION = 410
 
 
 PX4_LISTEN = ("127.0.0.1", 14580)
@@ -729,7 +730,7 @@ class MavlinkServer:
         if peer is None:
             self._reject("data stream: no room for another client")
             return
-        if msg.start_stop == 0 and msg.req_stream_id == 0:
+        if msg.start_stop == 0 and msg.req_stream_id == mavlink.MAV_DATA_STREAM_ALL:
             for mid in list(peer.intervals):
                 if mid != mavlink.MAVLINK_MSG_ID_HEARTBEAT:
                     self.set_interval(mid, None, peer)

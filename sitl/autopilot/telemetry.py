@@ -217,7 +217,8 @@ class Telemetry:
         v = self.ap.vehicle
         p = _estimate(v.tracked.pos_ned_m, v.estimate_offset_ned_m)
         lat, lon, alt = self.origin.to_global(p[0], p[1], p[2])
-        return self.mav.gps_raw_int_encode(self.time_usec, 3, lat, lon, alt, 80, 120, 0, 65535, 16)
+        return self.mav.gps_raw_int_encode(self.time_usec, mavlink.GPS_FIX_TYPE_3D_FIX, lat, lon, alt, 80, 120, 0,
+                                           65535, 16)
 
     def home_position(self) -> mavlink.MAVLink_message:
         h = self.ap.home

@@ -22,12 +22,12 @@ from .world import SensorFrame
 
 __all__ = ["ACCEL", "GYRO", "MAG", "BARO", "Px4Wire", "MotorOutputs"]
 
-ACCEL = 0b111
-GYRO = 0b111 << 3
-MAG = 0b111 << 6
-BARO = (1 << 9) | (1 << 11) | (1 << 12)
-"""absolute pressure, pressure altitude, temperature"""
-MODE_FLAG_ARMED = 128
+ACCEL = mavlink.HIL_SENSOR_UPDATED_XACC | mavlink.HIL_SENSOR_UPDATED_YACC | mavlink.HIL_SENSOR_UPDATED_ZACC
+GYRO = mavlink.HIL_SENSOR_UPDATED_XGYRO | mavlink.HIL_SENSOR_UPDATED_YGYRO | mavlink.HIL_SENSOR_UPDATED_ZGYRO
+MAG = mavlink.HIL_SENSOR_UPDATED_XMAG | mavlink.HIL_SENSOR_UPDATED_YMAG | mavlink.HIL_SENSOR_UPDATED_ZMAG
+BARO = (mavlink.HIL_SENSOR_UPDATED_ABS_PRESSURE | mavlink.HIL_SENSOR_UPDATED_PRESSURE_ALT
+        | mavlink.HIL_SENSOR_UPDATED_TEMPERATURE)
+MODE_FLAG_ARMED = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 NAN21 = [math.nan] + [0.0] * 20
 
 
@@ -61,7 +61,8 @@ class Px4Wire:
             v = fix.vel_ned_m_s
             speed = math.hypot(v[0], v[1])
             cog = int(round(math.degrees(math.atan2(v[1], v[0])) % 360.0 * 100)) if speed > 0.2 else 65535
-            out.append(mav.hil_gps_encode(t_us, 3, int(round(fix.lat_deg * 1e7)), int(round(fix.lon_deg * 1e7)),
+            out.append(mav.hil_gps_encode(t_us, mavlink.GPS_FIX_TYPE_3D_FIX, int(round(fix.lat_deg * 1e7)),
+                                          int(round(fix.lon_deg * 1e7)),
                                           int(round(fix.alt_m * 1000)), int(fix.eph_m * 100), int(fix.epv_m * 100),
                                           int(round(speed * 100)), int(round(v[0] * 100)), int(round(v[1] * 100)),
                                           int(round(v[2] * 100)), cog, 12, 0, 0).pack(mav))

@@ -16,22 +16,29 @@ import struct
 from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
 if TYPE_CHECKING:
     from .signed_link import SignedLink
 
 __all__ = ["Frame", "frames", "stamps", "armed", "for_component", "UdpRelay", "TcpRelay", "SETPOINTS",
            "CLOCKS_MS", "CLOCKS_US"]
 
-SETPOINTS = frozenset({82, 84, 86})
-"""SET_ATTITUDE_TARGET, SET_POSITION_TARGET_LOCAL_NED, SET_POSITION_TARGET_GLOBAL_INT: time_boot_ms first"""
-CLOCKS_MS = frozenset({30, 31, 32, 33})
-"""ATTITUDE, ATTITUDE_QUATERNION, LOCAL_POSITION_NED, GLOBAL_POSITION_INT: time_boot_ms first"""
-CLOCKS_US = frozenset({105, 331})
-COMMANDS = frozenset({75, 76})
-"""COMMAND_INT, COMMAND_LONG: a companion that commands (a landing, a mode) may stop streaming"""
-"""HIGHRES_IMU, ODOMETRY: time_usec first"""
-TARGET_COMPONENT = {20: 3, 21: 1, 23: 5}
+SETPOINTS = frozenset({mavlink.MAVLINK_MSG_ID_SET_ATTITUDE_TARGET, mavlink.MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED,
+                       mavlink.MAVLINK_MSG_ID_SET_POSITION_TARGET_GLOBAL_INT})
+"""setpoints: time_boot_ms first"""
+CLOCKS_MS = frozenset({mavlink.MAVLINK_MSG_ID_ATTITUDE, mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
+                       mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT})
+"""telemetry with time_boot_ms first"""
+CLOCKS_US = frozenset({mavlink.MAVLINK_MSG_ID_HIGHRES_IMU, mavlink.MAVLINK_MSG_ID_ODOMETRY})
+"""telemetry with time_usec first"""
+COMMANDS = frozenset({mavlink.MAVLINK_MSG_ID_COMMAND_INT, mavlink.MAVLINK_MSG_ID_COMMAND_LONG})
+"""a companion that commands (a landing, a mode) may stop streaming"""
+TARGET_COMPONENT = {mavlink.MAVLINK_MSG_ID_PARAM_REQUEST_READ: 3, mavlink.MAVLINK_MSG_ID_PARAM_REQUEST_LIST: 1,
+                    mavlink.MAVLINK_MSG_ID_PARAM_SET: 5}
 """PARAM_REQUEST_READ, PARAM_REQUEST_LIST, PARAM_SET: where target_component sits in the payload"""
+HEARTBEAT_BASE_MODE = 6
+"""base_mode's byte in a HEARTBEAT payload (after custom_mode uint32_t, type, autopilot)"""
 _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
 
@@ -124,8 +131,8 @@ def armed(msgs: list[Frame]) -> bool | None:
     if there is none."""
     found = None
     for m in msgs:
-        if m.msgid == 0 and m.compid == 1:
-            found = bool((m.payload + bytes(9))[6] & 128)
+        if m.msgid == mavlink.MAVLINK_MSG_ID_HEARTBEAT and m.compid == mavlink.MAV_COMP_ID_AUTOPILOT1:
+            found = bool((m.payload + bytes(9))[HEARTBEAT_BASE_MODE] & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
     return found
 
 

@@ -15,6 +15,7 @@ import time
 import numpy as np
 import pytest
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from helpers.processes import RelayProcess, free_udp_port
 from helpers.firmware import ArduCopterSitl
@@ -118,7 +119,7 @@ def test_companion_killed_mid_square_the_vehicle_levels_after_guid_timeout(arduc
         c.proc.wait()
         m = mavutil.mavlink_connection(f"tcp:127.0.0.1:{ap.tcp_port + 2}", source_system=201)
         m.wait_heartbeat(timeout=10)
-        m.mav.request_data_stream_send(1, 1, 0, 20, 1)
+        m.mav.request_data_stream_send(1, 1, mavlink.MAV_DATA_STREAM_ALL, 20, 1)
         first = m.recv_match(type="LOCAL_POSITION_NED", blocking=True, timeout=10)
         end = time.monotonic() + 2.0 / SPEEDUP + 1.0
         att = None
@@ -136,7 +137,8 @@ def test_a_gcs_taking_control_ends_the_mission_and_the_companion_lets_go(arducop
         c.wait_for("step square", timeout=180)
         gcs = mavutil.mavlink_connection(f"tcp:127.0.0.1:{ap.tcp_port + 2}", source_system=201)
         gcs.wait_heartbeat(timeout=10)
-        gcs.mav.command_long_send(1, 1, 176, 0, 1, BRAKE, 0, 0, 0, 0, 0)
+        gcs.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                                  BRAKE, 0, 0, 0, 0, 0)
         code, out = c.finish(timeout=120)
         assert code == 1, out
         assert "left offboard" in out and "has control: the companion stops here" in out

@@ -9,6 +9,7 @@ import sys
 import time
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl.firmware.builds import arducopter_binary, px4_build
 
@@ -79,7 +80,8 @@ def test_with_a_signing_key_the_firmware_answers_only_signed_frames_and_signs_it
         end = time.monotonic() + 60
         while heartbeat is None and time.monotonic() < end:
             if firmware == "ardupilot":
-                conn.mav.heartbeat_send(6, 8, 0, 0, 4)  # ArduPilot's serial speaks when spoken to
+                conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                        mavlink.MAV_STATE_ACTIVE)  # ArduPilot's serial speaks when spoken to
             heartbeat = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=1.0)
         assert heartbeat is not None and check.verdict(heartbeat) is None, "no heartbeat signed with the key"
         sysid = heartbeat.get_srcSystem()

@@ -16,7 +16,9 @@ import time
 
 import pytest
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.modes import PX4_MODES, px4_custom_mode
 from companion.control.params import TrajectoryParams
 from helpers.firmware import Px4Sih
 
@@ -35,9 +37,9 @@ its ground within one step, which the accelerometer reads as v / dt (0.3 m/s in 
 1.5 m up this happened mid-square and mid-hold, because EKF2's height on SIH's GPS and barometer is
 off by up to ~1.6 m (docs/autopilots.md, "Ground contact, not a simulator fault"); the missions fly
 5 m up, and a touchdown before the landing fails the flight"""
-OFFBOARD = 6 << 16
-HOLD = (4 << 16) | (3 << 24)
-LAND = (4 << 16) | (6 << 24)
+OFFBOARD = px4_custom_mode("OFFBOARD")
+HOLD = px4_custom_mode("HOLD")
+LAND = px4_custom_mode("LAND")
 
 
 def observer(port: int, timeout: float = 10.0) -> mavutil.mavfile:
@@ -264,9 +266,11 @@ def test_a_gcs_taking_control_ends_the_mission_and_the_companion_lets_go(px4_bui
         c.wait_for("step square", timeout=120)
         gcs = mavutil.mavlink_connection(f"udpout:127.0.0.1:{px4.gcs_port}", source_system=201)
         try:
-            gcs.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            gcs.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                   mavlink.MAV_STATE_UNINIT)
             gcs.wait_heartbeat(timeout=10)
-            gcs.mav.command_long_send(px4.sysid, 1, 176, 0, 1, 4, 3, 0, 0, 0, 0)
+            gcs.mav.command_long_send(px4.sysid, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
+                                      mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, *PX4_MODES["HOLD"], 0, 0, 0, 0)
             code, out = c.finish(timeout=60)
             assert code == 1, out
             assert "left offboard" in out and "has control: the companion stops here" in out

@@ -411,7 +411,8 @@ def test_a_fixed_wing_log_is_refused_not_misread(tmp_path, capsys):
     from pymavlink.dialects.v20 import common as mavlink
 
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-    frames = [mav.heartbeat_encode(mavlink.MAV_TYPE_FIXED_WING, mavlink.MAV_AUTOPILOT_PX4, 0, 0, 3)]
+    frames = [mav.heartbeat_encode(mavlink.MAV_TYPE_FIXED_WING, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                                   mavlink.MAV_STATE_STANDBY)]
     for k in range(50):
         frames += [mav.attitude_quaternion_encode(10 * k, 1, 0, 0, 0, 0, 0, 0),
                    mav.local_position_ned_encode(10 * k, 0, 0, -k * 0.1, 0, 0, -1.0),

@@ -6,6 +6,7 @@ ended a flight with an LZMAError in an exception group)."""
 import lzma
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.mavlink.events import CATALOGUE_MAX_BYTES, Event, EventCatalogue
 from sitl.autopilot.events import catalogue
@@ -39,5 +40,6 @@ def test_anything_but_a_catalogue_is_one_clear_value_error(name, blob):
 
 def test_an_event_without_a_catalogue_entry_still_reads():
     cat = EventCatalogue.from_bytes(b'{"components": {}}')
-    assert cat.text(Event(id=0x0102089D, time_boot_ms=0, sequence=0, severity=3, arguments=b"")) == \
+    assert cat.text(Event(id=0x0102089D, time_boot_ms=0, sequence=0, severity=mavlink.MAV_SEVERITY_ERROR,
+                          arguments=b"")) == \
         "PX4 event 0x0102089d"

@@ -6,6 +6,7 @@ import asyncio
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from companion.mavlink.modes import COPTER_MODES, px4_custom_mode
 from companion.link.pymavlink_link import PymavlinkLink
 
 PEER = ("127.0.0.1", 14580)
@@ -31,9 +32,12 @@ def mav(sysid=1, compid=1) -> mavlink.MAVLink:
     return mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
 
 
-def heartbeat(m, autopilot=mavlink.MAV_AUTOPILOT_PX4, kind=mavlink.MAV_TYPE_QUADROTOR, custom_mode=6 << 16):
+OFFBOARD = px4_custom_mode("OFFBOARD")
+
+
+def heartbeat(m, autopilot=mavlink.MAV_AUTOPILOT_PX4, kind=mavlink.MAV_TYPE_QUADROTOR, custom_mode=OFFBOARD):
     return m.heartbeat_encode(kind, autopilot, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | 128, custom_mode,
-                              4).pack(m)
+                              mavlink.MAV_STATE_ACTIVE).pack(m)
 
 
 def test_telemetry_from_another_component_of_the_same_system_is_ignored():
@@ -50,7 +54,8 @@ def test_telemetry_from_another_component_of_the_same_system_is_ignored():
 
 def test_a_heartbeat_of_another_kind_from_the_autopilots_component_does_not_change_the_mode():
     ap = mav(1, 1)
-    link = link_with([heartbeat(ap), heartbeat(ap, autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, custom_mode=9),
+    link = link_with([heartbeat(ap), heartbeat(ap, autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                               custom_mode=COPTER_MODES["LAND"]),
                       heartbeat(ap, kind=mavlink.MAV_TYPE_GCS, custom_mode=0)])
     assert link.state.mode == "OFFBOARD" and link.state.offboard and link.state.armed
     assert link.stats["heartbeats_of_another_kind"] == 2
@@ -65,21 +70,24 @@ def test_a_command_ack_counts_only_when_addressed_to_us_and_answering_a_command_
         reader = asyncio.create_task(link.run(stop))
         await asyncio.sleep(0.05)
         link._peer = None  # sending goes nowhere: only the forged answers below arrive
-        pending = asyncio.create_task(link.command_long(400, 1))
+        pending = asyncio.create_task(link.command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1))
         await asyncio.sleep(0.01)
         # answers to someone else, and an answer to a command we never sent
-        link._received(ap.command_ack_encode(400, 0, 0, 0, 42, 1).pack(ap), PEER)
-        link._received(ap.command_ack_encode(176, 0, 0, 0, 255, 191).pack(ap), PEER)
+        link._received(ap.command_ack_encode(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, mavlink.MAV_RESULT_ACCEPTED, 0, 0,
+                                             42, 1).pack(ap), PEER)
+        link._received(ap.command_ack_encode(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_RESULT_ACCEPTED, 0, 0, 255,
+                                             191).pack(ap), PEER)
         await asyncio.sleep(0.05)
         assert not pending.done()
-        link._received(ap.command_ack_encode(400, 4, 0, 0, 255, 191).pack(ap), PEER)  # ours: FAILED
+        link._received(ap.command_ack_encode(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, mavlink.MAV_RESULT_FAILED, 0, 0,
+                                             255, 191).pack(ap), PEER)  # ours: FAILED
         result = await pending
         stop.set()
         await reader
         return result, link.stats["acks_not_for_us"], link.stats["acks_unasked"]
 
     result, not_ours, unasked = asyncio.run(main())
-    assert result == 4 and not_ours == 1 and unasked == 1
+    assert result == mavlink.MAV_RESULT_FAILED and not_ours == 1 and unasked == 1
 
 
 def _param_link(plant: bool):
@@ -87,9 +95,11 @@ def _param_link(plant: bool):
     heard, whose outgoing frames are kept instead of sent."""
     link = PymavlinkLink("udpin://127.0.0.1:0", command_timeout_s=0.2, command_retries=2)
     ap, sim = mav(1, 1), mav(1, 25)
-    link._received(heartbeat(ap, autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, custom_mode=4), PEER)
+    link._received(heartbeat(ap, autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                 custom_mode=COPTER_MODES["GUIDED"]), PEER)
     if plant:
-        link._received(sim.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0).pack(sim),
+        link._received(sim.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                            mavlink.MAV_STATE_UNINIT).pack(sim),
                        PEER)
     sent: list = []
     link._send = sent.append
@@ -112,12 +122,14 @@ def test_the_autopilots_late_no_such_parameter_does_not_refuse_the_plants_write(
         write = asyncio.create_task(link.set_param("SIM_FORCE_X", 6.0))
         await asyncio.sleep(0.02)
         asked = sorted(m.target_component for m in sent if m.get_type() == "PARAM_REQUEST_READ")
-        link._received(sim.param_value_encode(b"SIM_FORCE_X", 0.0, 9, 23, 6).pack(sim), PEER)
+        link._received(sim.param_value_encode(b"SIM_FORCE_X", 0.0, mavlink.MAV_PARAM_TYPE_REAL32, 23, 6).pack(sim),
+                       PEER)
         await asyncio.sleep(0.02)
         link._received(_param_error(ap, "SIM_FORCE_X"), PEER)  # late, for the read
         await asyncio.sleep(0.02)
         sets = [(m.target_component, m.param_value) for m in sent if m.get_type() == "PARAM_SET"]
-        link._received(sim.param_value_encode(b"SIM_FORCE_X", 6.0, 9, 23, 6).pack(sim), PEER)
+        link._received(sim.param_value_encode(b"SIM_FORCE_X", 6.0, mavlink.MAV_PARAM_TYPE_REAL32, 23, 6).pack(sim),
+                       PEER)
         try:
             echoed = await asyncio.wait_for(write, 5.0)
         finally:

@@ -20,7 +20,7 @@ def test_one_wake_up_parses_the_whole_backlog():
         vehicle = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
         peer = ("127.0.0.1", 14580)
         link._received(vehicle.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
-                                                0, 0, 0).pack(vehicle), peer)
+                                                0, 0, mavlink.MAV_STATE_UNINIT).pack(vehicle), peer)
         for k in range(1, 300):
             link._received(vehicle.attitude_quaternion_encode(10 * k, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
                            .pack(vehicle), peer)

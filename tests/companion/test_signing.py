@@ -59,7 +59,8 @@ def test_unsigned_wrong_key_and_tampered_frames_are_refused() -> None:
 def test_allow_unsigned_names_only_the_listed_messages() -> None:
     check = SignatureCheck(KEY, allow_unsigned=frozenset({"HEARTBEAT"}))
     mav = mavlink.MAVLink(None, srcSystem=42, srcComponent=1)
-    hb = mav.heartbeat_encode(6, 8, 0, 0, 4).pack(mav)
+    hb = mav.heartbeat_encode(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                              mavlink.MAV_STATE_ACTIVE).pack(mav)
     assert check.verdict(decode(hb)) is None
     assert check.verdict(decode(frame(None))) == "unsigned"
 
@@ -141,9 +142,12 @@ def test_timestamps_follow_the_clock_so_a_receiver_started_minutes_later_accepts
     early = Check(KEY)  # a receiver that was there from the start
     for _ in range(200):
         clock.now += 0.6
-        assert early.verdict(decode(sender.heartbeat_encode(2, 12, 0, 0, 3).pack(sender))) is None
+        hb = sender.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                                     mavlink.MAV_STATE_STANDBY)
+        assert early.verdict(decode(hb.pack(sender))) is None
     late = Check(KEY)
-    msg = decode(sender.heartbeat_encode(2, 12, 0, 0, 3).pack(sender))
+    msg = decode(sender.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                                         mavlink.MAV_STATE_STANDBY).pack(sender))
     assert late.verdict(msg) is None
     low, high = struct.unpack("<IH", bytes(msg.get_msgbuf())[-12:-6])
     assert abs((low | high << 32) - signing_timestamp(clock.now)) <= 1
@@ -157,7 +161,8 @@ def test_timestamps_still_increase_when_the_clock_steps_back(monkeypatch) -> Non
     stamps = []
     for step in (0.0, 0.0, -5.0, 0.0, 10.0):
         clock.now += step
-        buf = mav.heartbeat_encode(2, 12, 0, 0, 3).pack(mav)
+        buf = mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                                   mavlink.MAV_STATE_STANDBY).pack(mav)
         low, high = struct.unpack("<IH", buf[-12:-6])
         stamps.append(low | high << 32)
     assert all(b > a for a, b in zip(stamps, stamps[1:]))

@@ -8,6 +8,7 @@ import random
 import pytest
 from pymavlink.dialects.v20 import common as mavlink
 
+from companion.mavlink.modes import px4_custom_mode
 from companion.config import ConfigError
 from companion.link.pymavlink_link import PymavlinkLink
 from companion.mavlink.identity import (AutopilotsHeard, SequenceStreams, VehicleTarget, connection_problem,
@@ -19,7 +20,8 @@ ROUTER = ("127.0.0.1", 14550)
 
 def heartbeat(m):
     return m.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
-                              mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4 << 16, 3).pack(m)
+                              mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, px4_custom_mode("HOLD"),
+                              mavlink.MAV_STATE_STANDBY).pack(m)
 
 
 def position(m, x):

@@ -10,7 +10,9 @@ from dataclasses import dataclass
 
 import pytest
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.setpoints import ROLL_PITCH_RATES_IGNORED
 from companion.vehicle_process import VehicleProcess
 from helpers.processes import ROOT, child_env
 from helpers.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4
@@ -28,7 +30,8 @@ class Target:
 
     def connect(self, source_system: int = 250) -> mavutil.mavfile:
         m = mavutil.mavlink_connection(self.url, source_system=source_system, source_component=190)
-        m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                             mavlink.MAV_STATE_UNINIT)
         return m
 
 
@@ -88,7 +91,8 @@ def latest(m: mavutil.mavfile, kind: str, timeout: float = 5.0):
     return found if found is not None else wait(m, kind, timeout=timeout)
 
 
-def stream_until(m: mavutil.mavfile, sysid: int, q, thrust: float, done, timeout: float, type_mask: int = 3) -> bool:
+def stream_until(m: mavutil.mavfile, sysid: int, q, thrust: float, done, timeout: float,
+                 type_mask: int = ROLL_PITCH_RATES_IGNORED) -> bool:
     """SET_ATTITUDE_TARGET at 50 Hz of wall time, every message read between two handed to ``done``,
     until it returns True (then True) or for ``timeout`` seconds (then False)."""
     end = time.monotonic() + timeout
@@ -103,6 +107,7 @@ def stream_until(m: mavutil.mavfile, sysid: int, q, thrust: float, done, timeout
     return False
 
 
-def stream(m: mavutil.mavfile, sysid: int, seconds: float, q, thrust: float, type_mask: int = 3) -> None:
+def stream(m: mavutil.mavfile, sysid: int, seconds: float, q, thrust: float,
+           type_mask: int = ROLL_PITCH_RATES_IGNORED) -> None:
     """SET_ATTITUDE_TARGET at 50 Hz of wall time for ``seconds``, reading (and dropping) what arrives."""
     stream_until(m, sysid, q, thrust, lambda msg: False, seconds, type_mask)

@@ -8,8 +8,11 @@ import time
 
 import pytest
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from companion.mavlink.modes import COPTER_MODES, px4_custom_mode
+from companion.mavlink.commands import FORCE_ARM_DISARM
+from companion.mavlink.setpoints import RATES_IGNORED, ROLL_PITCH_RATES_IGNORED
+from companion.mavlink.modes import COPTER_MODES, PX4_MODES, px4_custom_mode
 
 from .conftest import SPEED, latest, stream, stream_until, wait
 
@@ -63,9 +66,11 @@ def test_px4_after_a_disarm_returns_to_the_users_mode_and_refuses_to_arm_there_w
     # a stream (> 2 Hz for > 1 s), level attitude, hover-ish thrust, kept up while switching: a
     # busy host can delay the switch past the stream's timeout if the stream stops first
     stream(m, px4.sysid, 1.5, (1.0, 0, 0, 0), 0.5)
-    m.mav.command_long_send(px4.sysid, 1, 176, 0, 1, 6, 0, 0, 0, 0, 0)  # OFFBOARD
+    m.mav.command_long_send(px4.sysid, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                            *PX4_MODES["OFFBOARD"], 0, 0, 0, 0)  # OFFBOARD
     _stream_until_mode(m, px4, "OFFBOARD")
-    m.mav.command_long_send(px4.sysid, 1, 176, 0, 1, 4, 6, 0, 0, 0, 0)  # LAND (by mode), still streaming:
+    m.mav.command_long_send(px4.sysid, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                            *PX4_MODES["LAND"], 0, 0, 0, 0)  # LAND (by mode), still streaming:
     _stream_until_mode(m, px4, "LAND")  # an offboard-loss failsafe first would be another test
     heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=60)
     time.sleep(0.5)
@@ -96,7 +101,8 @@ def _airborne_in_offboard(m, px4, hover: float | None = None) -> None:
     command(m, px4, 22, 0, 0, 0, math.nan, math.nan, math.nan, math.nan)
     wait(m, "LOCAL_POSITION_NED", lambda p: p.z < -1.5, timeout=30)
     stream(m, px4.sysid, 1.5, (1.0, 0, 0, 0), hover)
-    m.mav.command_long_send(px4.sysid, 1, 176, 0, 1, 6, 0, 0, 0, 0, 0)
+    m.mav.command_long_send(px4.sysid, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                            *PX4_MODES["OFFBOARD"], 0, 0, 0, 0)
     stream(m, px4.sysid, 0.5, (1.0, 0, 0, 0), hover)
     assert latest(m, "HEARTBEAT").custom_mode == px4_custom_mode("OFFBOARD") or heartbeat(
         m, lambda h: h.custom_mode == px4_custom_mode("OFFBOARD"))
@@ -128,7 +134,7 @@ def test_px4_an_attitude_with_roll_and_pitch_rates_ignored_is_flown(px4):
     _airborne_in_offboard(m, px4)
     roll = (math.cos(math.radians(5)), math.sin(math.radians(5)), 0.0, 0.0)
     stream(m, px4.sysid, 1.0 / px4.speed, roll, 0.52)
-    m.mav.set_attitude_target_send(0, px4.sysid, 1, 3, list(roll), 0, 0, 0, 0.52)
+    m.mav.set_attitude_target_send(0, px4.sysid, 1, ROLL_PITCH_RATES_IGNORED, list(roll), 0, 0, 0, 0.52)
     att = latest(m, "ATTITUDE")
     assert abs(math.degrees(att.roll) - 10.0) < 4.0, math.degrees(att.roll)
 
@@ -144,12 +150,13 @@ def _mode_command_once(m, target, mode: str, timeout: float = 5.0) -> int:
     setpoint went stale). PX4 v1.16 answers DO_SET_MODE twice, and a refused OFFBOARD comes as
     ACCEPTED then TEMPORARILY_REJECTED (measured on SIH): every ACK within 0.5 s of the first counts."""
     main, sub = px4_custom_mode(mode) >> 16 & 0xFF, px4_custom_mode(mode) >> 24
-    m.mav.command_long_send(target.sysid, 1, 176, 0, 1, main, sub, 0, 0, 0, 0)
-    results = [wait(m, "COMMAND_ACK", lambda a: a.command == 176, timeout).result]
+    m.mav.command_long_send(target.sysid, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
+                            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub, 0, 0, 0, 0)
+    results = [wait(m, "COMMAND_ACK", lambda a: a.command == mavlink.MAV_CMD_DO_SET_MODE, timeout).result]
     end = time.monotonic() + 0.5
     while time.monotonic() < end:
         ack = m.recv_match(type="COMMAND_ACK", blocking=True, timeout=0.1)
-        if ack is not None and ack.command == 176:
+        if ack is not None and ack.command == mavlink.MAV_CMD_DO_SET_MODE:
             results.append(ack.result)
     return max(results)
 
@@ -168,12 +175,13 @@ def test_px4_takes_offboard_on_one_fresh_setpoint_and_rejects_it_on_a_stale_one(
     assert command(m, px4, 176, 1, 4, 3) == 0  # HOLD
     assert command(m, px4, 400, 1) == 0
     level = [1.0, 0.0, 0.0, 0.0]
-    m.mav.set_attitude_target_send(0, px4.sysid, 1, 7, level, 0, 0, 0, 0.0)
+    m.mav.set_attitude_target_send(0, px4.sysid, 1, RATES_IGNORED, level, 0, 0, 0, 0.0)
     _vehicle_seconds_pass(m, loss_t + 0.5)
     assert _mode_command_once(m, px4, "OFFBOARD") == mavutil.mavlink.MAV_RESULT_TEMPORARILY_REJECTED
-    m.mav.set_attitude_target_send(0, px4.sysid, 1, 7, level, 0, 0, 0, 0.0)
+    m.mav.set_attitude_target_send(0, px4.sysid, 1, RATES_IGNORED, level, 0, 0, 0, 0.0)
     assert _mode_command_once(m, px4, "OFFBOARD") == mavutil.mavlink.MAV_RESULT_ACCEPTED
-    m.mav.command_long_send(px4.sysid, 1, 400, 0, 0, 21196, 0, 0, 0, 0, 0)  # disarm on the ground
+    m.mav.command_long_send(px4.sysid, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                            0, FORCE_ARM_DISARM, 0, 0, 0, 0, 0)  # disarm on the ground
 
 
 # --- ArduCopter ---------------------------------------------------------------------------------
@@ -197,7 +205,7 @@ def test_arducopter_has_a_position_only_once_its_ekf_has_an_origin(copter):
     """LOCAL_POSITION_NED flows only some 40 s (vehicle time) after boot: at least 20 s."""
     m = copter.connect()
     heartbeat(m, timeout=20)
-    m.mav.request_data_stream_send(copter.sysid, 1, 0, 10, 1)
+    m.mav.request_data_stream_send(copter.sysid, 1, mavlink.MAV_DATA_STREAM_ALL, 10, 1)
     first_att = wait(m, "ATTITUDE", timeout=20).time_boot_ms * 1e-3
     pos = wait(m, "LOCAL_POSITION_NED", timeout=120)
     assert pos.time_boot_ms * 1e-3 > 20.0 and pos.time_boot_ms * 1e-3 > first_att, (first_att, pos.time_boot_ms)
@@ -206,7 +214,7 @@ def test_arducopter_has_a_position_only_once_its_ekf_has_an_origin(copter):
 def _guided_airborne(m, copter) -> None:
     """GUIDED, armed, 2 m up, thrust as throttle (GUID_OPTIONS bit 3), streams on."""
     heartbeat(m, timeout=20)
-    m.mav.request_data_stream_send(copter.sysid, 1, 0, 20, 1)
+    m.mav.request_data_stream_send(copter.sysid, 1, mavlink.MAV_DATA_STREAM_ALL, 20, 1)
     wait(m, "LOCAL_POSITION_NED", timeout=120)
     armable(m, timeout=60)
     m.mav.param_set_send(copter.sysid, 1, b"GUID_OPTIONS", 8, mavutil.mavlink.MAV_PARAM_TYPE_REAL32)
@@ -246,8 +254,9 @@ def test_arducopter_guided_flies_an_attitude_target_beyond_its_angle_limit(copte
     _guided_airborne(m, copter)
     hover = _hover_throttle(m, copter)
     q = (math.cos(math.radians(20)), math.sin(math.radians(20)), 0.0, 0.0)
-    stream(m, copter.sysid, 1.5 / copter.speed, q, min(hover / math.cos(math.radians(40)), 0.9), type_mask=7)
-    m.mav.set_attitude_target_send(0, copter.sysid, 1, 7, list(q), 0, 0, 0, hover)
+    stream(m, copter.sysid, 1.5 / copter.speed, q, min(hover / math.cos(math.radians(40)), 0.9),
+           type_mask=RATES_IGNORED)
+    m.mav.set_attitude_target_send(0, copter.sysid, 1, RATES_IGNORED, list(q), 0, 0, 0, hover)
     att = latest(m, "ATTITUDE")
     assert math.degrees(att.roll) > 35.0, math.degrees(att.roll)
 
@@ -259,7 +268,7 @@ def test_arducopter_levels_after_guid_timeout_and_stays_in_guided(copter):
     _guided_airborne(m, copter)
     hover = _hover_throttle(m, copter)
     q = (math.cos(math.radians(7.5)), math.sin(math.radians(7.5)), 0.0, 0.0)
-    stream(m, copter.sysid, 1.0 / copter.speed, q, hover, type_mask=7)
+    stream(m, copter.sysid, 1.0 / copter.speed, q, hover, type_mask=RATES_IGNORED)
     t0 = latest(m, "ATTITUDE").time_boot_ms * 1e-3
     att = wait(m, "ATTITUDE", lambda a: a.time_boot_ms * 1e-3 > t0 + 4.0, timeout=30)
     assert abs(math.degrees(att.roll)) < 3.0, math.degrees(att.roll)
@@ -283,7 +292,8 @@ def _fly_and_record(m, copter, vehicle_s: float, q, thrust: float) -> list:
             seen.append(msg)
         return bool(seen) and seen[-1].time_boot_ms - seen[0].time_boot_ms >= vehicle_s * 1e3
 
-    flown = stream_until(m, copter.sysid, q, thrust, record, 5.0 * vehicle_s / copter.speed + 10.0, type_mask=7)
+    flown = stream_until(m, copter.sysid, q, thrust, record, 5.0 * vehicle_s / copter.speed + 10.0,
+                         type_mask=RATES_IGNORED)
     assert flown, f"the vehicle did not fly {vehicle_s} s within the wall time allowed"
     return seen
 
@@ -300,7 +310,8 @@ def _lean_with(m, copter, param: str, value: float, level_s: float, roll_deg: fl
 
 def _fast_streams(m, copter) -> None:
     for msg_id in (mavutil.mavlink.MAVLINK_MSG_ID_ATTITUDE, mavutil.mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED):
-        m.mav.command_long_send(copter.sysid, 1, 511, 0, msg_id, 20000, 0, 0, 0, 0, 0)  # 50 Hz
+        m.mav.command_long_send(copter.sysid, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                msg_id, 20000, 0, 0, 0, 0, 0)  # 50 Hz
 
 
 def _roll(deg: float) -> tuple[float, float, float, float]:

@@ -20,9 +20,11 @@ from dataclasses import dataclass
 
 import pytest
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.setpoints import ROLL_PITCH_RATES_IGNORED
 from companion.control.params import VehicleParams
-from companion.mavlink.modes import px4_custom_mode
+from companion.mavlink.modes import PX4_MODES, px4_custom_mode
 from companion.mavlink.params import PLANT_COMPID
 from companion.vehicle_process import FirmwareVehicle
 from helpers.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4
@@ -133,7 +135,8 @@ def test_px4_hovers_at_its_airframes_throttle_holds_its_point_and_follows_a_roll
     hover = px4_on.hover_physics
     level = (1.0, 0.0, 0.0, 0.0)
     stream(m, px4_on.sysid, 1.0, level, hover)
-    m.mav.command_long_send(px4_on.sysid, 1, 176, 0, 1, 6, 0, 0, 0, 0, 0)  # OFFBOARD
+    m.mav.command_long_send(px4_on.sysid, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
+                            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, *PX4_MODES["OFFBOARD"], 0, 0, 0, 0)  # OFFBOARD
     stream(m, px4_on.sysid, 0.5, level, hover)
     assert heartbeat(m).custom_mode == px4_custom_mode("OFFBOARD")
     step = (math.cos(math.radians(5.0)), math.sin(math.radians(5.0)), 0.0, 0.0)
@@ -141,7 +144,8 @@ def test_px4_hovers_at_its_airframes_throttle_holds_its_point_and_follows_a_roll
     rolls: list[tuple[float, float]] = []
     end = time.monotonic() + 10.0
     while time.monotonic() < end and (not rolls or rolls[-1][0] < 1.5):
-        m.mav.set_attitude_target_send(0, px4_on.sysid, 1, 3, list(step), 0, 0, 0, hover / math.cos(math.radians(10)))
+        m.mav.set_attitude_target_send(0, px4_on.sysid, 1, ROLL_PITCH_RATES_IGNORED, list(step), 0, 0, 0,
+                                       hover / math.cos(math.radians(10)))
         stop = time.monotonic() + 0.02
         while (a := m.recv_match(type="ATTITUDE", blocking=True, timeout=max(stop - time.monotonic(), 0.001))):
             rolls.append(((a.time_boot_ms - t_step) * 1e-3, math.degrees(a.roll)))

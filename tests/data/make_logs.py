@@ -38,6 +38,7 @@ import time
 from pathlib import Path
 
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
@@ -127,7 +128,7 @@ def ardupilot(out: Path, instance: int, speedup: float) -> None:
     try:
         m = mavutil.mavlink_connection(f"tcp:127.0.0.1:{session.ports['companion'].rsplit(':', 1)[1]}",
                                        source_system=255, source_component=190)
-        m.mav.heartbeat_send(MAV.MAV_TYPE_GCS, MAV.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        m.mav.heartbeat_send(MAV.MAV_TYPE_GCS, MAV.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_UNINIT)
         wait(m, "HEARTBEAT", lambda h: h.get_srcComponent() == 1, 60)
         m.mav.request_data_stream_send(1, 1, MAV.MAV_DATA_STREAM_ALL, 10, 1)
         wait(m, "LOCAL_POSITION_NED", timeout=120)

@@ -16,6 +16,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.modes import px4_custom_mode
 from companion.link.pymavlink_link import MAX_PARAMS, PymavlinkLink
 from companion.link.state import MAX_POSITION_M, MAX_RATE_RAD_S, MAX_SPECIFIC_FORCE_M_S2, MAX_SPEED_M_S
 
@@ -33,7 +34,10 @@ def locked_link() -> PymavlinkLink:
     """A link that has locked on to a PX4 vehicle (system 1) by its heartbeat."""
     link = PymavlinkLink("udp://127.0.0.1:14540")
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-    link._parse(mav.heartbeat_encode(2, 12, 0x81, 6 << 16, 4).pack(mav), 0.0, link.address)
+    link._parse(mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
+                                     mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED,
+                                     px4_custom_mode("OFFBOARD"), mavlink.MAV_STATE_ACTIVE).pack(mav), 0.0,
+                link.address)
     assert link.state.sysid == 1
     return link
 
@@ -72,7 +76,8 @@ def test_invented_parameter_names_are_bounded(names: list[bytes]) -> None:
     link = locked_link()
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     for i, name in enumerate(names):
-        link._parse(mav.param_value_encode(name, float(i), 9, 65535, i).pack(mav), 0.0, link.address)
+        link._parse(mav.param_value_encode(name, float(i), mavlink.MAV_PARAM_TYPE_REAL32, 65535, i).pack(mav), 0.0,
+                    link.address)
     check(link)
 
 

@@ -51,7 +51,7 @@ def _flying_autopilot() -> Autopilot:
     ap = make()
     airborne(ap)
     stream(ap, 1.2, sender=255)
-    assert ap.set_mode(Mode.OFFBOARD, 255).result == 0
+    assert ap.set_mode(Mode.OFFBOARD, 255).result == mavlink.MAV_RESULT_ACCEPTED
     return ap
 
 

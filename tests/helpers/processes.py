@@ -18,6 +18,7 @@ from typing import Any
 from pathlib import Path
 
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.mavlink.events import EventCatalogue, parse_event
 from companion.vehicle_process import VehicleProcess
@@ -141,7 +142,8 @@ class Client:
 
     def __init__(self, url: str, source_system: int = 255) -> None:
         self.m = mavutil.mavlink_connection(f"udpout:{url}", source_system=source_system, source_component=190)
-        self.m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        self.m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                  mavlink.MAV_STATE_UNINIT)
         self.seen: dict[str, object] = {}
         self.texts: list[str] = []
 
@@ -191,7 +193,7 @@ class Client:
         return ack.result
 
     def set_mode(self, main: int, sub: int = 0) -> int:
-        return self.command(176, 1, main, sub)
+        return self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub)
 
     def attitude_target(self, q, rates=(0.0, 0.0, 0.0), thrust: float = 0.5, type_mask: int = 0,
                         target=(1, 1)) -> None:

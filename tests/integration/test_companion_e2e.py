@@ -16,7 +16,9 @@ import time
 import numpy as np
 import pytest
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.modes import px4_custom_mode
 from companion.plots import load_timeseries
 
 pytestmark = pytest.mark.integration
@@ -143,10 +145,11 @@ def test_killing_the_companion_lets_the_vehicle_failsafe_land(sitl, companion, c
     c = companion("missions/hover45.toml", s.url)
     c.wait_for("step hover")
     obs = client(s.url, source_system=200)
-    obs.wait("HEARTBEAT", lambda h: h.custom_mode == 6 << 16)  # flying offboard
+    obs.wait("HEARTBEAT", lambda h: h.custom_mode == px4_custom_mode("OFFBOARD"))  # flying offboard
     c.proc.kill()
-    obs.wait("HEARTBEAT", lambda h: h.custom_mode == 3 << 16, timeout=10)  # POSCTL: the failsafe's descent
-    obs.wait("HEARTBEAT", lambda h: not h.base_mode & 128, timeout=30)  # disarmed
+    obs.wait("HEARTBEAT", lambda h: h.custom_mode == px4_custom_mode("POSCTL"),
+             timeout=10)  # POSCTL: the failsafe's descent
+    obs.wait("HEARTBEAT", lambda h: not h.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED, timeout=30)  # disarmed
     assert "offboard lost" in obs.text("offboard lost")
     report = s.stop()
     assert not report["armed"] and report["stats"]["setpoint_waits"] >= 1
@@ -258,7 +261,7 @@ def test_ardupilot_dead_companion_the_vehicle_levels_after_guid_timeout(sitl, co
     c.wait_for("step hover")
     c.proc.kill()
     obs = client(s.url, source_system=200)
-    obs.m.mav.request_data_stream_send(1, 1, 0, 10, 1)
+    obs.m.mav.request_data_stream_send(1, 1, mavlink.MAV_DATA_STREAM_ALL, 10, 1)
     obs.text("attitude target timed out, levelling", timeout=15)
     time.sleep(2.0)
     att = obs.latest("ATTITUDE")
@@ -400,7 +403,7 @@ def test_after_its_own_stall_the_companion_never_cancels_the_failsafe_landing(si
     assert code == 1, out
     assert "left offboard" in out and "has control: the companion stops here" in out, out
     obs = client(s.url, source_system=200)
-    obs.wait("HEARTBEAT", lambda h: not h.base_mode & 128, timeout=60)
+    obs.wait("HEARTBEAT", lambda h: not h.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED, timeout=60)
     report = s.stop()
     assert not report["armed"]
     assert any("offboard lost" in text for _, text in report["events"]), report["events"]

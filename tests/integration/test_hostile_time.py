@@ -21,6 +21,7 @@ import math
 import time
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from helpers.mitm import Mitm
 from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT
@@ -28,6 +29,7 @@ from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT
 from companion.mavlink.boot_time import BOOT_MS_PERIOD_S
 
 pytestmark = pytest.mark.integration
+ACCELERATIONS = mavlink.HIGHRES_IMU_UPDATED_XACC | mavlink.HIGHRES_IMU_UPDATED_YACC | mavlink.HIGHRES_IMU_UPDATED_ZACC
 
 def _attacks(mitm: Mitm) -> dict[str, int]:
     """Ten frames of each class, built from the newest genuine messages."""
@@ -37,8 +39,8 @@ def _attacks(mitm: Mitm) -> dict[str, int]:
     unix_us = int(time.time() * 1e6)
     tilted = (math.cos(math.radians(15)), math.sin(math.radians(15)), 0.0, 0.0)  # 30 deg of roll
     frames = {
-        "unix_time_imu": [f.highres_imu_encode(unix_us + 1000 * k, 0.0, 0.0, -9.81, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-                                               0, 0x7) for k in range(10)],
+        "unix_time_imu": [f.highres_imu_encode(unix_us + 1000 * k, 0.0, 0.0, -9.81, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+                                               ACCELERATIONS) for k in range(10)],
         "jump_forward": [f.attitude_quaternion_encode(att.time_boot_ms + 3_600_000 + k, *tilted, 0, 0, 0)
                          for k in range(10)],
         "backwards": [f.local_position_ned_encode(max(att.time_boot_ms - 30_000, 1) + k, pos.x + 5.0, pos.y,

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from helpers.processes import PAPER, PAPER_OUTPUT, text_of
 
@@ -51,7 +52,8 @@ class Observer:
         last_hb = 0.0
         while not self._stop.is_set():
             if time.monotonic() - last_hb > 0.5:  # stay a known peer of the vehicle
-                self.m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+                self.m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                          mavlink.MAV_STATE_UNINIT)
                 last_hb = time.monotonic()
             msg = self.m.recv_match(blocking=True, timeout=0.1)
             if msg is None:
@@ -62,7 +64,8 @@ class Observer:
             elif text_of(msg) is not None:  # STATUSTEXT or EVENT
                 self.texts.append(text_of(msg))
             elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1:
-                self.armed.append((time.monotonic(), bool(msg.base_mode & 128), msg.custom_mode))
+                self.armed.append((time.monotonic(), bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED),
+                                   msg.custom_mode))
 
     def stop(self) -> np.ndarray:
         self._stop.set()

@@ -18,8 +18,10 @@ pytestmark = pytest.mark.integration
 
 def test_the_frame_splitter_cuts_a_stream_in_any_pieces_and_skips_garbage():
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-    frames = [mav.heartbeat_encode(2, 12, 0, 0, 3).pack(mav), mav.attitude_quaternion_encode(
-        5, 1, 0, 0, 0, 0, 0, 0, [0.0] * 4).pack(mav), mav.statustext_encode(4, b"hello", 0, 0).pack(mav)]
+    frames = [mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                                   mavlink.MAV_STATE_STANDBY).pack(mav),
+              mav.attitude_quaternion_encode(5, 1, 0, 0, 0, 0, 0, 0, [0.0] * 4).pack(mav),
+              mav.statustext_encode(mavlink.MAV_SEVERITY_WARNING, b"hello", 0, 0).pack(mav)]
     stream = b"\x00garbage" + b"".join(frames) + b"\x01\x02"
     for piece in (1, 3, 7, len(stream)):
         s = FrameSplitter()

@@ -14,6 +14,8 @@ from collections import Counter
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.commands import FORCE_ARM_DISARM
+from companion.mavlink.modes import px4_custom_mode
 from companion.control import quaternion as quat
 from companion.mavlink.signing import signing_timestamp, write_key_file
 
@@ -111,7 +113,8 @@ class FakeVehicle:
                 pass
             if peer is not None:
                 hb = self.mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
-                                               mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4 << 16 | 3 << 24, 3)
+                                               mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, px4_custom_mode("HOLD"),
+                                               mavlink.MAV_STATE_STANDBY)
                 self.sock.sendto(hb.pack(self.mav), peer)
 
     def stop(self) -> None:
@@ -167,7 +170,8 @@ def test_a_far_future_frame_on_another_link_is_refused_and_the_companion_keeps_c
         sock.sendto(setpoint.pack(rogue), ("127.0.0.1", s.port))
         sent["SET_ATTITUDE_TARGET"] += 1
         if i % 10 == 0:
-            cmd = rogue.command_long_encode(1, 1, 400, 0, 0, 21196, 0, 0, 0, 0, 0)
+            cmd = rogue.command_long_encode(1, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                                            0, FORCE_ARM_DISARM, 0, 0, 0, 0, 0)
             sock.sendto(cmd.pack(rogue), ("127.0.0.1", s.port))
             sent["COMMAND_LONG"] += 1
         time.sleep(0.02)

@@ -20,8 +20,14 @@ from mavsdk.plugins.mission import MissionError, MissionItem, MissionPlan, Missi
 from mavsdk.plugins.param import ParamError, ParamResult
 from mavsdk.plugins.shell import Device
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 pytestmark = pytest.mark.integration
+POSITION_ONLY = (mavlink.POSITION_TARGET_TYPEMASK_VX_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_VY_IGNORE
+                 | mavlink.POSITION_TARGET_TYPEMASK_VZ_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_AX_IGNORE
+                 | mavlink.POSITION_TARGET_TYPEMASK_AY_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_AZ_IGNORE
+                 | mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE)
+"""SET_POSITION_TARGET_*: the position alone"""
 
 
 def test_mavsdk_gets_an_empty_log_list_an_unknown_parameter_refused_and_a_shell_that_says_it_is_none(sitl):
@@ -94,7 +100,7 @@ def test_the_answers_on_the_wire(sitl):
     UNSUPPORTED of its type; SET_POSITION_TARGET_GLOBAL_INT refused with a STATUSTEXT, not ignored."""
     s = sitl(speedup=2.0)
     m = mavutil.mavlink_connection(f"udpout:{s.url}", source_system=250, source_component=190)
-    m.mav.heartbeat_send(6, 8, 0, 0, 0)
+    m.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_UNINIT)
     m.wait_heartbeat(timeout=10)
     m.mav.log_request_list_send(1, 1, 0, 0xFFFF)
     entry = m.recv_match(type="LOG_ENTRY", blocking=True, timeout=5)
@@ -116,7 +122,7 @@ def test_the_answers_on_the_wire(sitl):
     assert ack is not None and ack.type == mavutil.mavlink.MAV_MISSION_UNSUPPORTED
     assert ack.mission_type == mavutil.mavlink.MAV_MISSION_TYPE_FENCE
     m.mav.set_position_target_global_int_send(0, 1, 1, mavutil.mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                                              0b110111111000, 473977420, 85455940, 5.0, 0, 0, 0, 0, 0, 0, 0, 0)
+                                              POSITION_ONLY, 473977420, 85455940, 5.0, 0, 0, 0, 0, 0, 0, 0, 0)
     said = m.recv_match(type="STATUSTEXT", condition="'GLOBAL_INT' in STATUSTEXT.text", blocking=True, timeout=5)
     assert said is not None and said.text == "Rejected: GLOBAL_INT setpoint: use LOCAL_NED"
     m.close()

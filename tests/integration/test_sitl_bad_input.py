@@ -11,12 +11,18 @@ import socket
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.commands import FORCE_ARM_DISARM
 from companion.control import quaternion as quat
 
 from helpers.processes import quat_angle_deg
 from .test_sitl_pymavlink import OFFBOARD, stream, switch_to_offboard, take_off
 
 pytestmark = pytest.mark.integration
+
+NO_SUCH_MODE = (42, 7)
+"""DO_SET_MODE param2, param3 that name no PX4 mode"""
+NO_SUCH_COMMAND = 31999
+"""a MAV_CMD number no dialect defines"""
 
 
 def packed(msg_fn, *args, sysid=255) -> bytes:
@@ -38,7 +44,8 @@ def garbage(q_ok, hover, rng: random.Random) -> dict[str, list[bytes]]:
         "wrong_target": [
             packed(sat, 0, 7, 1, 0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0.9),  # another vehicle
             packed(sat, 0, 1, 99, 0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0.9),  # another component
-            packed("command_long_encode", 9, 1, 400, 0, 0, 21196, 0, 0, 0, 0, 0),  # force disarm, not us
+            packed("command_long_encode", 9, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0,
+                   0, FORCE_ARM_DISARM, 0, 0, 0, 0, 0),  # force disarm, not us
         ],
         "bad_values": [
             packed(sat, 0, 1, 1, 0, [math.nan, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, hover),
@@ -52,13 +59,16 @@ def garbage(q_ok, hover, rng: random.Random) -> dict[str, list[bytes]]:
             packed(sat, 0, 1, 1, 0, list(q_ok), 1e6, 0.0, 0.0, hover),  # absurd rate
         ],
         "bad_commands": [
-            packed("command_long_encode", 1, 1, 176, 0, math.nan, math.nan, math.nan, 0, 0, 0, 0),
-            packed("command_long_encode", 1, 1, 176, 0, 1, 42, 7, 0, 0, 0, 0),  # no such mode
-            packed("command_long_encode", 1, 1, 400, 0, 7.0, 0, 0, 0, 0, 0, 0),  # arm with 7?
-            packed("command_long_encode", 1, 1, 31999, 0, 0, 0, 0, 0, 0, 0, 0),  # unknown command
-            packed("command_long_encode", 1, 1, 511, 0, math.inf, -5, 0, 0, 0, 0, 0),
-            packed("param_set_encode", 1, 1, b"SIM_MASS_FAC", math.nan, 9),
-            packed("param_set_encode", 1, 1, b"NO_SUCH_PARAM", 1.0, 9),
+            packed("command_long_encode", 1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, math.nan, math.nan, math.nan, 0, 0, 0,
+                   0),
+            packed("command_long_encode", 1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
+                   mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, *NO_SUCH_MODE, 0, 0, 0, 0),
+            packed("command_long_encode", 1, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 7.0, 0, 0, 0, 0, 0, 0),
+                         # arm with 7?
+            packed("command_long_encode", 1, 1, NO_SUCH_COMMAND, 0, 0, 0, 0, 0, 0, 0, 0),
+            packed("command_long_encode", 1, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, math.inf, -5, 0, 0, 0, 0, 0),
+            packed("param_set_encode", 1, 1, b"SIM_MASS_FAC", math.nan, mavlink.MAV_PARAM_TYPE_REAL32),
+            packed("param_set_encode", 1, 1, b"NO_SUCH_PARAM", 1.0, mavlink.MAV_PARAM_TYPE_REAL32),
         ],
     }
 
@@ -88,7 +98,8 @@ def test_bad_input_is_dropped_counted_and_changes_nothing(sitl, client):
     raw.close()
 
     heartbeats = [m for m in got if m.get_type() == "HEARTBEAT" and m.get_srcSystem() == 1]
-    assert heartbeats and all(h.custom_mode == OFFBOARD and h.base_mode & 128 for h in heartbeats)
+    assert heartbeats and all(h.custom_mode == OFFBOARD and h.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+                              for h in heartbeats)
     targets = [m for m in got if m.get_type() == "ATTITUDE_TARGET"]
     assert targets and all(quat_angle_deg(t.q, q_ok) < 0.01 for t in targets)  # float32 on the wire
     assert all(abs(t.thrust - hover) < 1e-6 for t in targets)

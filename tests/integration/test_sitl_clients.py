@@ -81,7 +81,8 @@ class Watcher:
         beat = 0.0
         while not self._stop.is_set():
             if time.monotonic() - beat > 1.0:
-                self.c.m.mav.heartbeat_send(6, 8, 0, 0, 4)
+                self.c.m.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                            mavlink.MAV_STATE_ACTIVE)
                 beat = time.monotonic()
             m = self.c.recv(0.05)
             if m is not None:
@@ -119,14 +120,21 @@ class Attacker:
         while not self._stop.wait(0.005):
             if n % 200 == 0:  # every second: stop everything again
                 for mid in STREAMABLE:
-                    self._send("interval -1", mav.command_long_encode(1, 1, 511, 0, mid, -1, 0, 0, 0, 0, 0))
-                self._send("data stream stop", mav.request_data_stream_encode(1, 1, 0, 0, 0))
-                self._send("interval 1 kHz", mav.command_long_encode(1, 1, 511, 0, 31, 1000, 0, 0, 0, 0, 0))
+                    self._send("interval -1", mav.command_long_encode(1, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                                                      mid, -1, 0, 0, 0, 0, 0))
+                self._send("data stream stop", mav.request_data_stream_encode(1, 1, mavlink.MAV_DATA_STREAM_ALL, 0, 0))
+                self._send("interval 1 kHz", mav.command_long_encode(1, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                                                     mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, 1000,
+                                                                     0, 0, 0, 0, 0))
             self._send("param list", mav.param_request_list_encode(1, 1))
-            self._send("request message", mav.command_long_encode(1, 1, 512, 0, 148, 0, 0, 0, 0, 0, 0))
+            self._send("request message", mav.command_long_encode(1, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                                                                  mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0,
+                                                                  0, 0, 0))
             self._send("ping", mav.ping_encode(n, n & 0xFFFFFFFF, 0, 0))
             with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as churn:
-                self._send("churn heartbeat", mav.heartbeat_encode(6, 8, 0, 0, 4), churn)
+                self._send("churn heartbeat", mav.heartbeat_encode(mavlink.MAV_TYPE_GCS,
+                                                                   mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                                   mavlink.MAV_STATE_ACTIVE), churn)
                 self._send("churn param list", mav.param_request_list_encode(1, 1), churn)
             n += 1
 
@@ -156,7 +164,7 @@ def test_an_attacker_neither_stops_nor_slows_another_clients_telemetry_nor_the_w
     c = Client(s.url)
     att = take_off(c)
     for kind, hz in ASKED_HZ.items():
-        assert c.command(511, ID[kind], 1e6 / hz) == 0
+        assert c.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, ID[kind], 1e6 / hz) == 0
     hover = c.param("MPC_THR_HOVER")
     q = quat.from_yaw(quat.to_euler((att.q1, att.q2, att.q3, att.q4))[2])
     stream(c, q, hover, 1.0)

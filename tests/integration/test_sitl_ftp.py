@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 from pymavlink.mavftp import MAVFTP
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.mavlink import ftp
 from companion.mavlink.events import CATALOGUE_PATH
@@ -23,7 +24,7 @@ pytestmark = pytest.mark.integration
 def test_mavproxys_ftp_downloads_the_event_catalogue(sitl):  # type: ignore[no-untyped-def]
     s = sitl(speedup=4.0)
     m = mavutil.mavlink_connection(f"udpout:{s.url}", source_system=250)
-    m.mav.heartbeat_send(6, 8, 0, 0, 0)
+    m.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_UNINIT)
     m.wait_heartbeat(timeout=10)
     data = MAVFTP(m, m.target_system, m.target_component).read(CATALOGUE_PATH, 1_000_000)
     assert data == catalogue()

@@ -10,6 +10,7 @@ import time
 
 import pytest
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
 
@@ -19,6 +20,7 @@ pytestmark = pytest.mark.integration
 
 SPEEDUP = 4.0
 UPRIGHT_DEG = 85.0
+ARMED = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 """as in tests/sitl/test_parameters.py: the position loop's 70° limit and the landing transient"""
 WINDY = ("--param", "SIM_WIND_N=3", "--param", "SIM_TURB_SIGMA=0.6")
 
@@ -56,7 +58,8 @@ def test_values_that_used_to_kill_the_vehicle_are_refused_and_it_flies_on(sitl, 
         assert s.alive(), f"the vehicle died after {name} = {value:g}"
         assert echoed != value, (name, echoed)
     assert worst < UPRIGHT_DEG, worst
-    c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and h.base_mode & 128 and h.custom_mode == HOLD)
+    c.wait("HEARTBEAT",
+           lambda h: h.get_srcSystem() == 1 and h.base_mode & ARMED and h.custom_mode == HOLD)
     report = s.stop()
     assert report["armed"] and report["stats"].get("internal_errors", 0) == 0
     assert sum(v for k, v in report["rejections"].items() if k.startswith("param set")) == len(killers)
@@ -85,7 +88,8 @@ def test_every_parameter_at_both_edges_of_its_range_over_udp(sitl, client, recor
         assert s.alive(), row.name
     record_property("worst_tilt_deg", max(worst.values()))
     assert max(worst.values()) < UPRIGHT_DEG, sorted(worst.items(), key=lambda kv: -kv[1])[:5]
-    c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and h.base_mode & 128 and h.custom_mode == HOLD)
+    c.wait("HEARTBEAT",
+           lambda h: h.get_srcSystem() == 1 and h.base_mode & ARMED and h.custom_mode == HOLD)
     report = s.stop()
     assert report["armed"] and report["terminated"] is None and report["halted"] is None
     assert report["stats"].get("internal_errors", 0) == 0 and report["stats"].get("telemetry_errors", 0) == 0
@@ -103,8 +107,8 @@ def test_deliberate_faults_end_in_defined_failsafes_and_the_process_keeps_answer
     set_param(c, "SIM_MOT1_EFF", 0.0)
     text = c.text("Loss of control", timeout=10)
     assert text.endswith("motors off") or "motors" in text, text
-    c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and not h.base_mode & 128)
-    assert c.command(400, 1) == mavutil.mavlink.MAV_RESULT_DENIED
+    c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and not h.base_mode & ARMED)
+    assert c.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mavutil.mavlink.MAV_RESULT_DENIED
     assert "restart" in c.text("Arming denied")
     set_param(c, "SIM_STATE_NAN", 1)
     assert "non-finite state" in c.text("Numerical fault", timeout=10)

@@ -12,6 +12,8 @@ from .test_sitl_pymavlink import HOLD, take_off
 
 pytestmark = pytest.mark.integration
 NAN = math.nan
+NO_SUCH_MESSAGE = 99999
+"""a message id no dialect defines"""
 
 
 def rate_in_sim_hz(c, kind: str, wall_s: float) -> float:
@@ -31,12 +33,12 @@ def test_identity_version_home_and_ping(sitl, client):
     hb = c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1)
     assert hb.get_srcComponent() == 1 and hb.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
     assert hb.system_status == mavlink.MAV_STATE_STANDBY
-    assert c.command(512, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION) == 0
+    assert c.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION) == 0
     v = c.wait("AUTOPILOT_VERSION")
     assert v.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     assert v.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
     assert v.flight_sw_version >> 8 == (1 << 16) | (16 << 8)  # PX4 1.16.0, the release it imitates
-    assert c.command(512, mavlink.MAVLINK_MSG_ID_HOME_POSITION) == 0
+    assert c.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION) == 0
     home = c.wait("HOME_POSITION")
     assert abs(home.latitude - 473977420) < 10 and home.altitude == 488000
     c.m.mav.ping_send(123456, 42, 0, 0)
@@ -54,15 +56,16 @@ def test_set_message_interval_is_acknowledged_and_honoured(sitl, client):
     c = client(s.url)
     c.wait("HEARTBEAT")
     assert 90 < rate_in_sim_hz(c, "HIGHRES_IMU", 1.0) < 110
-    assert c.command(511, mavlink.MAVLINK_MSG_ID_HIGHRES_IMU, 100000) == 0
+    assert c.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_HIGHRES_IMU, 100000) == 0
     c.recv(0.3)
     assert 9 < rate_in_sim_hz(c, "HIGHRES_IMU", 2.0) < 11
-    assert c.command(511, mavlink.MAVLINK_MSG_ID_HIGHRES_IMU, -1) == 0
+    assert c.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_HIGHRES_IMU, -1) == 0
     time.sleep(0.3)
     c.latest("HEARTBEAT")  # drains what was already on its way
     after = [c.recv(0.05) for _ in range(20)]
     assert not [m for m in after if m is not None and m.get_type() == "HIGHRES_IMU"]
-    assert c.command(511, 99999, 100000) == mavlink.MAV_RESULT_DENIED  # nothing we can stream
+    assert c.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, NO_SUCH_MESSAGE,
+                     100000) == mavlink.MAV_RESULT_DENIED  # nothing we can stream
 
 
 def test_commands_are_idempotent_and_refusals_say_why(sitl, client):
@@ -72,15 +75,16 @@ def test_commands_are_idempotent_and_refusals_say_why(sitl, client):
     s = sitl(speedup=2.0)
     c = client(s.url)
     c.wait("HEARTBEAT")
-    assert c.command(22, 0, 0, 0, 0, NAN, NAN, NAN) == mavlink.MAV_RESULT_DENIED
+    assert c.command(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, NAN, NAN, NAN) == mavlink.MAV_RESULT_DENIED
     assert "disarmed" in c.text("Takeoff denied")
     take_off(c)
-    assert c.command(400, 1) == 0  # already armed
-    assert c.command(22, 0, 0, 0, 0, NAN, NAN, NAN) == 0  # already flying
-    assert c.command(400, 0) == mavlink.MAV_RESULT_DENIED  # disarm in the air without force
+    assert c.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0  # already armed
+    assert c.command(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, NAN, NAN, NAN) == 0  # already flying
+    assert c.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM,
+                     0) == mavlink.MAV_RESULT_DENIED  # disarm in the air without force
     assert "in the air" in c.text("Disarming denied")
     assert c.set_mode(1, 0) == mavlink.MAV_RESULT_DENIED  # MANUAL: no RC here
-    assert c.command(31000) == mavlink.MAV_RESULT_UNSUPPORTED
+    assert c.command(mavlink.MAV_CMD_WAYPOINT_USER_1) == mavlink.MAV_RESULT_UNSUPPORTED
     # the second take-off re-entered TAKEOFF (as PX4 does in HOLD), already at its altitude: it
     # hands back to HOLD on the next check, however long the commands above took on this host
     c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and h.custom_mode == HOLD, timeout=10)

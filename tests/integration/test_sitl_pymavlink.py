@@ -8,7 +8,9 @@ import time
 
 import pytest
 from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.modes import PX4_MODES, px4_custom_mode
 from companion.control import quaternion as quat
 
 from helpers.processes import quat_angle_deg
@@ -16,10 +18,10 @@ from helpers.processes import quat_angle_deg
 pytestmark = pytest.mark.integration
 
 PREARM = mavutil.mavlink.MAV_SYS_STATUS_PREARM_CHECK
-OFFBOARD = 6 << 16
-POSCTL = 3 << 16
-HOLD = (4 << 16) | (3 << 24)
-LAND = (4 << 16) | (6 << 24)
+OFFBOARD = px4_custom_mode("OFFBOARD")
+POSCTL = px4_custom_mode("POSCTL")
+HOLD = px4_custom_mode("HOLD")
+LAND = px4_custom_mode("LAND")
 NAN = math.nan
 
 
@@ -27,8 +29,8 @@ def take_off(c):
     hb = c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and h.get_srcComponent() == 1)
     assert hb.autopilot == mavutil.mavlink.MAV_AUTOPILOT_PX4 and hb.type == mavutil.mavlink.MAV_TYPE_QUADROTOR
     c.wait("SYS_STATUS", lambda m: m.onboard_control_sensors_health & PREARM)
-    assert c.command(400, 1) == 0
-    assert c.command(22, 0, 0, 0, 0, NAN, NAN, NAN) == 0
+    assert c.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
+    assert c.command(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, NAN, NAN, NAN) == 0
     c.wait("LOCAL_POSITION_NED", lambda m: m.z < -2.3, timeout=20)
     c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and h.custom_mode == HOLD, timeout=10)
     return c.wait("ATTITUDE_QUATERNION")
@@ -55,9 +57,11 @@ def stream(c, q, thrust, wall_s, rates=(0.0, 0.0, 0.0), period=0.02, until=None)
 
 def switch_to_offboard(c, q, thrust):
     """Request OFFBOARD while streaming (the stream must not pause, or the failsafe fires)."""
-    c.m.mav.command_long_send(1, 1, 176, 0, 1, 6, 0, 0, 0, 0, 0)
-    got = stream(c, q, thrust, 10.0, until=lambda m: m.get_type() == "COMMAND_ACK" and m.command == 176)
-    assert got[-1].result == 0
+    c.m.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                              *PX4_MODES["OFFBOARD"], 0, 0, 0, 0)
+    got = stream(c, q, thrust, 10.0,
+                 until=lambda m: m.get_type() == "COMMAND_ACK" and m.command == mavlink.MAV_CMD_DO_SET_MODE)
+    assert got[-1].result == mavlink.MAV_RESULT_ACCEPTED
     stream(c, q, thrust, 10.0, until=lambda m: m.get_type() == "HEARTBEAT" and m.custom_mode == OFFBOARD)
 
 
@@ -91,8 +95,9 @@ def test_offboard_attitude_flight_with_quaternion_rates_and_thrust(sitl, client)
     assert max(errors) < 2.0, errors
 
     stream(c, level, hover, 1.0)
-    assert c.command(21) == 0
-    c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and not h.base_mode & 128, timeout=30)
+    assert c.command(mavlink.MAV_CMD_NAV_LAND) == 0
+    c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and not h.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED,
+           timeout=30)
     for kind in ("HIGHRES_IMU", "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", "EXTENDED_SYS_STATE",
                  "GLOBAL_POSITION_INT", "SYS_STATUS", "ATTITUDE"):
         assert kind in c.seen, kind
@@ -149,7 +154,8 @@ def test_losing_the_setpoint_stream_descends_and_lands_as_px4_does(sitl, client)
     sys_time = c.wait("SYSTEM_TIME").time_boot_ms / 1000.0
     assert sys_time - t_last < 1.0 + 1.0 + 1.0  # loss timeout + heartbeat period + SYSTEM_TIME period
     c.text("offboard lost, descending")
-    c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and not h.base_mode & 128, timeout=20)
+    c.wait("HEARTBEAT", lambda h: h.get_srcSystem() == 1 and not h.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED,
+           timeout=20)
     assert left is not None
     assert s.stop()["mode"] == "OFFBOARD"  # disarmed, back in the mode the user chose last (PX4)
 

@@ -3,7 +3,10 @@
 import math
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.setpoints import ATTITUDE_IGNORED
+from companion.mavlink.modes import px4_custom_mode
 from companion.control import quaternion as quat
 from sitl.autopilot.logic import Autopilot, AutopilotParams, LandedState, MavResult, Mode
 from sitl.plant.scenario import Scenario
@@ -25,8 +28,8 @@ def run(ap, seconds):
 
 
 def airborne(ap):
-    assert ap.command(400, (1,)).result == MavResult.ACCEPTED
-    assert ap.command(22, (0, 0, 0, 0, NAN, NAN, NAN)).result == MavResult.ACCEPTED
+    assert ap.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1,)).result == MavResult.ACCEPTED
+    assert ap.command(mavlink.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, NAN, NAN, NAN)).result == MavResult.ACCEPTED
     run(ap, 4.0)
     assert ap.mode == Mode.HOLD and not ap.landed
 
@@ -49,7 +52,7 @@ def test_takeoff_reaches_the_takeoff_altitude_and_holds_it():
 
 def test_armed_without_takeoff_disarms_after_the_preflight_timeout():
     ap = make(disarm_preflight_s=3.0)
-    ap.command(400, (1,))
+    ap.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1,))
     run(ap, 2.5)
     assert ap.armed
     run(ap, 1.0)
@@ -94,7 +97,7 @@ def test_rates_only_setpoint_turns_the_vehicle_at_the_commanded_rate():
     stream(ap, 1.0)
     assert ap.set_mode(Mode.OFFBOARD).result == MavResult.ACCEPTED
     yaw0 = quat.to_euler(ap.vehicle.state.q)[2]
-    stream(ap, 1.0, type_mask=128, rates=(0.0, 0.0, 1.0))
+    stream(ap, 1.0, type_mask=ATTITUDE_IGNORED, rates=(0.0, 0.0, 1.0))
     turned = quat.to_euler(ap.vehicle.state.q)[2] - yaw0
     assert abs(turned - 1.0) < 0.05
 
@@ -145,11 +148,12 @@ AS_THE_COMPANION_SETS_IT = {"rate_ff_enabled": False, "angle_boost": False}
 
 def guided_airborne(**params):
     ap = make(flavour="ardupilot", position_after_s=0.0, **params)
-    assert ap.command(22, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.DENIED  # not armed
-    ap.command(400, (1,))
-    assert ap.command(22, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.DENIED  # not GUIDED
+    assert ap.command(mavlink.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.DENIED  # not armed
+    ap.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1,))
+    assert ap.command(mavlink.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.DENIED  # not GUIDED
     assert ap.set_mode(Mode.GUIDED).result == MavResult.ACCEPTED
-    assert ap.command(22, (0, 0, 0, 0, 0, 0, 1.5)).result == MavResult.ACCEPTED  # relative height
+    assert ap.command(mavlink.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, 0, 0,
+                                                    1.5)).result == MavResult.ACCEPTED  # relative height
     run(ap, 4.0)
     assert ap.mode == Mode.GUIDED and ap.vehicle.state.pos_ned_m[2] == pytest.approx(-1.5, abs=0.05)
     return ap
@@ -162,7 +166,7 @@ def test_ardupilot_modes_are_copter_numbers():
     assert custom_mode(Mode.TAKEOFF, "ardupilot") == 4  # take-off runs inside GUIDED
     assert mode_from_command("ardupilot", 20, 0) == Mode.GUIDED  # GUIDED_NOGPS
     assert mode_from_command("ardupilot", 6, 0) == Mode.RTL
-    assert custom_mode(Mode.OFFBOARD, "px4") == 6 << 16
+    assert custom_mode(Mode.OFFBOARD, "px4") == px4_custom_mode("OFFBOARD")
     assert make(flavour="ardupilot").set_mode(Mode.OFFBOARD).result == MavResult.DENIED
 
 

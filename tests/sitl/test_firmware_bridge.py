@@ -12,6 +12,8 @@ import struct
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from companion.mavlink.modes import px4_custom_mode
+from companion.mavlink.setpoints import ROLL_PITCH_RATES_IGNORED
 from companion.control.params import VehicleParams
 from companion.mavlink.params import PLANT_COMPID
 from sitl.firmware.ardupilot import MAGIC_16, servo_packet, state_line
@@ -87,10 +89,11 @@ def test_no_lead_is_no_lockstep() -> None:
 # --- the relay reads headers only ------------------------------------------------------------
 
 def test_setpoint_and_telemetry_stamps_are_read_from_the_headers() -> None:
-    sp = GCS.set_attitude_target_encode(123456, 1, 1, 3, [1, 0, 0, 0], 0, 0, 0, 0.5).pack(GCS)
+    sp = GCS.set_attitude_target_encode(123456, 1, 1, ROLL_PITCH_RATES_IGNORED, [1, 0, 0, 0], 0, 0, 0, 0.5).pack(GCS)
     att = MAV.attitude_encode(777000, 0, 0, 0, 0, 0, 0).pack(MAV)
     imu = MAV.highres_imu_encode(778500000, *([0.0] * 13), 0x7).pack(MAV)
-    hb = MAV.heartbeat_encode(2, 12, 0, 0, 4).pack(MAV)
+    hb = MAV.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                              mavlink.MAV_STATE_ACTIVE).pack(MAV)
     msgs, used = frames(hb + att + sp + imu)
     assert used == len(hb + att + sp + imu) and [m.msgid for m in msgs] == [0, 30, 82, 105]
     assert [m.compid for m in msgs] == [1, 1, 190, 1]
@@ -125,13 +128,14 @@ def _decode(datagrams: list[bytes]) -> list:  # type: ignore[type-arg]
 
 def _boot(c: PlantComponent, firmware_has: tuple[str, ...] = ()) -> None:
     """The firmware's heartbeat, then three rounds of the probe, answered for ``firmware_has``."""
-    c.receive(MAV.heartbeat_encode(2, 12, 0, 0, 4).pack(MAV))
+    c.receive(MAV.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                                   mavlink.MAV_STATE_ACTIVE).pack(MAV))
     t = 0.0
     while c.params is None:
         asked = [m.param_id for m in _decode(c.tick(t)) if m.get_type() == "PARAM_REQUEST_READ"]
         for name in asked:
             if name in firmware_has:
-                c.receive(MAV.param_value_encode(name.encode(), 1.0, 9, 900, 5).pack(MAV))
+                c.receive(MAV.param_value_encode(name.encode(), 1.0, mavlink.MAV_PARAM_TYPE_REAL32, 900, 5).pack(MAV))
         t += 0.5
         assert t < 5
 
@@ -142,7 +146,8 @@ def test_the_plant_serves_its_parameters_and_a_set_reaches_the_vehicle() -> None
     listed = _decode(c.receive(GCS.param_request_list_encode(1, PLANT_COMPID).pack(GCS)))
     assert {m.param_id for m in listed} >= {"SIM_FORCE_X", "SIM_WIND_N", "SIM_MOT1_EFF", "SIM_IMU_NAN"}
     assert all(m.get_srcComponent() == PLANT_COMPID and m.param_count == len(listed) for m in listed)
-    echo = _decode(c.receive(GCS.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 6.0, 9).pack(GCS)))
+    echo = _decode(c.receive(GCS.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 6.0,
+                                                  mavlink.MAV_PARAM_TYPE_REAL32).pack(GCS)))
     assert [(m.param_id, m.param_value) for m in echo] == [("SIM_FORCE_X", 6.0)]
     assert world.vehicle.extra_force_ned_n == (6.0, 0.0, 0.0)
 
@@ -150,7 +155,8 @@ def test_the_plant_serves_its_parameters_and_a_set_reaches_the_vehicle() -> None
 def test_a_value_out_of_range_is_refused_with_the_old_value_echoed_and_a_reason() -> None:
     c, world = _component()
     _boot(c)
-    out = _decode(c.receive(GCS.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 60.0, 9).pack(GCS)))
+    out = _decode(c.receive(GCS.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 60.0,
+                                                 mavlink.MAV_PARAM_TYPE_REAL32).pack(GCS)))
     texts = [m.text for m in out if m.get_type() == "STATUSTEXT"]
     values = [m.param_value for m in out if m.get_type() == "PARAM_VALUE"]
     assert values == [0.0] and "outside" in texts[0] and world.vehicle.extra_force_ned_n == (0.0, 0.0, 0.0)
@@ -203,7 +209,9 @@ def test_a_frame_reaches_px4_as_hil_sensor_with_every_field_flagged() -> None:
 
 def test_px4s_motor_outputs_are_read_with_its_armed_flag() -> None:
     wire = Px4Wire()
-    data = MAV.hil_actuator_controls_encode(8000, [0.5, 0.6, 0.7, 0.8] + [0.0] * 12, 129, 1).pack(MAV)
+    armed = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+    data = MAV.hil_actuator_controls_encode(8000, [0.5, 0.6, 0.7, 0.8] + [0.0] * 12, armed,
+                                            mavlink.HIL_ACTUATOR_CONTROLS_FLAGS_LOCKSTEP).pack(MAV)
     out = wire.parse(data[:10]) + wire.parse(data[10:])
     assert len(out) == 1 and out[0].armed and out[0].controls[:4] == pytest.approx((0.5, 0.6, 0.7, 0.8))
 
@@ -243,11 +251,12 @@ def test_hover_outputs_hold_the_plant_up() -> None:
 def test_the_relay_hands_what_is_addressed_to_the_plant_to_it_and_passes_the_rest() -> None:
     from sitl.firmware.relay import for_component
 
-    to_plant = GCS.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 2.0, 9).pack(GCS)
+    to_plant = GCS.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 2.0, mavlink.MAV_PARAM_TYPE_REAL32).pack(GCS)
     read_plant = GCS.param_request_read_encode(1, PLANT_COMPID, b"SIM_WIND_N", -1).pack(GCS)
-    to_autopilot = GCS.param_set_encode(1, 1, b"MPC_XY_P", 1.0, 9).pack(GCS)
+    to_autopilot = GCS.param_set_encode(1, 1, b"MPC_XY_P", 1.0, mavlink.MAV_PARAM_TYPE_REAL32).pack(GCS)
     broadcast = GCS.param_request_list_encode(1, 0).pack(GCS)
-    sp = GCS.set_attitude_target_encode(1, 1, 25, 3, [1, 0, 0, 0], 0, 0, 0, 0.5).pack(GCS)  # 25 but a setpoint
+    sp = GCS.set_attitude_target_encode(1, 1, 25, ROLL_PITCH_RATES_IGNORED, [1, 0, 0, 0], 0, 0, 0, 0.5).pack(GCS)
+    # to component 25, but a setpoint
     mine, rest = for_component(to_autopilot + to_plant + sp + read_plant + broadcast, PLANT_COMPID)
     assert mine == to_plant + read_plant and rest == to_autopilot + sp + broadcast
     assert for_component(to_plant[:9], PLANT_COMPID) == (b"", to_plant[:9])  # cut: passed on as it came
@@ -261,11 +270,16 @@ def test_the_world_waits_only_while_the_vehicle_is_armed() -> None:
     gate.setpoint(10.0)
     gate.telemetry(10.03)
     assert not gate.may_advance(0.0)
-    offboard = 6 << 16
-    flying = MAV.heartbeat_encode(2, 12, 128 | 1, offboard, 4).pack(MAV)
-    parked = MAV.heartbeat_encode(2, 12, 1, offboard, 4).pack(MAV)
+    offboard = px4_custom_mode("OFFBOARD")
+    flying = MAV.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
+                                  mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED,
+                                  offboard, mavlink.MAV_STATE_ACTIVE).pack(MAV)
+    parked = MAV.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4,
+                                  mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, offboard,
+                                  mavlink.MAV_STATE_ACTIVE).pack(MAV)
     plant = mavlink.MAVLink(None, srcSystem=1, srcComponent=PLANT_COMPID)
-    other = plant.heartbeat_encode(0, 8, 128, 0, 4).pack(plant)
+    other = plant.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID,
+                                   mavlink.MAV_MODE_FLAG_SAFETY_ARMED, 0, mavlink.MAV_STATE_ACTIVE).pack(plant)
     assert armed(frames(flying)[0]) is True and armed(frames(parked)[0]) is False
     assert armed(frames(other)[0]) is None  # not the autopilot's
     gate.heartbeat(False)
@@ -365,7 +379,8 @@ def test_under_signing_the_udp_relay_signs_what_leaves_and_passes_only_signed_fr
     relay.signing = SignedLink(KEY)
     try:
         px4 = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-        firmware.sendto(px4.heartbeat_encode(2, 12, 0, 0, 4).pack(px4)
+        firmware.sendto(px4.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                                             mavlink.MAV_STATE_ACTIVE).pack(px4)
                         + px4.attitude_encode(1000, 0.1, 0, 0, 0, 0, 0).pack(px4), fw_side)
         _pump(relay)
         rx = mavlink.MAVLink(None)
@@ -378,10 +393,12 @@ def test_under_signing_the_udp_relay_signs_what_leaves_and_passes_only_signed_fr
         enable_signing(signed, KEY)
         wrong = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
         enable_signing(wrong, bytes(32 * [7]))
-        arm_plain = plain.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(plain)
-        arm_wrong = wrong.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(wrong)
-        arm_signed = signed.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(signed)
-        gcs_heartbeat = plain.heartbeat_encode(6, 8, 0, 0, 4).pack(plain)
+        ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
+        arm_plain = plain.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(plain)
+        arm_wrong = wrong.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(wrong)
+        arm_signed = signed.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(signed)
+        gcs_heartbeat = plain.heartbeat_encode(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                               mavlink.MAV_STATE_ACTIVE).pack(plain)
         for datagram in (arm_plain, arm_wrong, arm_signed, gcs_heartbeat):
             companion.sendto(datagram, relay.co_sock.getsockname())
         _pump(relay)
@@ -411,7 +428,7 @@ def test_under_signing_the_tcp_relay_signs_the_firmwares_stream_and_the_plants_r
     listen = probe.getsockname()
     probe.close()
     plant = mavlink.MAVLink(None, srcSystem=1, srcComponent=PLANT_COMPID)
-    answer = plant.param_value_encode(b"SIM_FORCE_X", 2.0, 9, 1, 0).pack(plant)
+    answer = plant.param_value_encode(b"SIM_FORCE_X", 2.0, mavlink.MAV_PARAM_TYPE_REAL32, 1, 0).pack(plant)
     relay = TcpRelay(listen, firmware_server.getsockname(), lambda t: None, lambda t: None,
                      (PLANT_COMPID, lambda data: [answer]))
     relay.signing = SignedLink(KEY)
@@ -422,14 +439,17 @@ def test_under_signing_the_tcp_relay_signs_the_firmwares_stream_and_the_plants_r
         signed = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
         enable_signing(signed, KEY)
         plain = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-        client.sendall(signed.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 2.0, 9).pack(signed)
-                       + plain.param_set_encode(1, 1, b"ARMING_CHECK", 0, 9).pack(plain)
-                       + signed.param_set_encode(1, 1, b"GUID_TIMEOUT", 0.5, 9).pack(signed))
+        client.sendall(signed.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 2.0,
+                                               mavlink.MAV_PARAM_TYPE_REAL32).pack(signed)
+                       + plain.param_set_encode(1, 1, b"ARMING_CHECK", 0, mavlink.MAV_PARAM_TYPE_REAL32).pack(plain)
+                       + signed.param_set_encode(1, 1, b"GUID_TIMEOUT", 0.5,
+                                                 mavlink.MAV_PARAM_TYPE_REAL32).pack(signed))
         _pump(relay)
         up = mavlink.MAVLink(None).parse_buffer(_received(fw)) or []
         assert [m.param_id for m in up] == ["GUID_TIMEOUT"]  # the plant's own answered here; the unsigned dropped
         ardu = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-        fw.sendall(ardu.heartbeat_encode(2, 3, 0, 0, 4).pack(ardu))
+        fw.sendall(ardu.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
+                                         mavlink.MAV_STATE_ACTIVE).pack(ardu))
         _pump(relay)
         rx = mavlink.MAVLink(None)
         rx.signing.secret_key = KEY

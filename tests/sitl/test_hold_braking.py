@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
 from sitl.autopilot.guard import StepGuard
@@ -46,7 +47,7 @@ def fly_then_hold(profile: list[tuple[float, float, float]], hold_s: float = 14.
                 samples.append((ap.t, tilt_sp, s.pos_ned_m, s.vel_ned_m_s))
 
     run(1.2)
-    assert ap.command(400, (1,)).result == MavResult.ACCEPTED
+    assert ap.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1,)).result == MavResult.ACCEPTED
     assert ap.attitude_target(255, 7, quat.IDENTITY, (0.0, 0.0, 0.0), 0.0) is None
     assert ap.set_mode(Mode.OFFBOARD).result == MavResult.ACCEPTED
     for roll_deg, thrust, seconds in profile:
@@ -107,7 +108,7 @@ def test_the_offboard_loss_failsafe_entered_in_a_fast_climb_brakes_before_it_des
     guard = StepGuard(ap)
     for _ in range(1200):
         guard.step()
-    ap.command(400, (1,))
+    ap.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1,))
     ap.attitude_target(255, 7, quat.IDENTITY, (0.0, 0.0, 0.0), 0.7)
     assert ap.set_mode(Mode.OFFBOARD).result == MavResult.ACCEPTED
     for _ in range(40):

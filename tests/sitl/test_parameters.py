@@ -78,7 +78,8 @@ class Flight:
         s.transport = self.wire  # type: ignore[assignment]
         self.mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
         for _ in range(3):
-            self.send(self.mav.heartbeat_encode(6, 8, 0, 0, 4))
+            self.send(self.mav.heartbeat_encode(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                mavlink.MAV_STATE_ACTIVE))
         self.max_tilt_deg = 0.0
 
     @property
@@ -104,7 +105,7 @@ class Flight:
                 return
 
     def land(self) -> None:
-        assert self.ap.command(21, ()).result == MavResult.ACCEPTED
+        assert self.ap.command(mavlink.MAV_CMD_NAV_LAND, ()).result == MavResult.ACCEPTED
         self.fly(30.0, until=lambda: self.ap.landed)
 
     def check_alive(self) -> None:
@@ -194,9 +195,9 @@ def test_a_dead_motor_ends_in_the_loss_of_control_failsafe() -> None:
     assert f.ap.terminated and f.ap.terminated.startswith("Loss of control"), f.ap.events
     assert f.ap.t - t0 < math.sqrt(2 * 2.5 / 9.81) and not f.ap.armed and not f.ap.vehicle.motors_on
     assert not f.ap.landed
-    texts = [m.text for m in f.wire.messages("STATUSTEXT") if m.severity == 2]
+    texts = [m.text for m in f.wire.messages("STATUSTEXT") if m.severity == mavlink.MAV_SEVERITY_CRITICAL]
     assert any(t.startswith("Loss of control") and t.endswith("motors off") for t in texts), texts
-    assert f.ap.command(400, (1,)).result == MavResult.DENIED
+    assert f.ap.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1,)).result == MavResult.DENIED
     f.fly(3.0)
     f.check_alive()
 
@@ -219,7 +220,7 @@ def test_a_numerical_fault_in_the_step_is_reported_and_contained_and_the_vehicle
     f.fly(0.01)
     vehicle.step = original  # type: ignore[method-assign]
     assert f.server.guard.halted == "ValueError: math domain error"
-    texts = [m.text for m in f.wire.messages("STATUSTEXT") if m.severity == 2]
+    texts = [m.text for m in f.wire.messages("STATUSTEXT") if m.severity == mavlink.MAV_SEVERITY_CRITICAL]
     assert "Numerical fault (ValueError: math domain error)" in texts[0], texts
     assert "World halted: restart the vehicle" in texts
     assert not f.ap.armed and f.ap.terminated
@@ -229,7 +230,7 @@ def test_a_numerical_fault_in_the_step_is_reported_and_contained_and_the_vehicle
     f.check_alive()
     f.send(f.mav.param_request_read_encode(1, 1, b"SIM_MASS_FAC", -1))
     assert f.wire.messages("PARAM_VALUE")[-1].param_id == "SIM_MASS_FAC"
-    f.send(f.mav.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+    f.send(f.mav.command_long_encode(1, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0))
     assert f.wire.messages("COMMAND_ACK")[-1].result == MavResult.DENIED
     attitude = f.wire.messages("ATTITUDE_QUATERNION")[-1]
     assert all(math.isfinite(c) for c in (attitude.q1, attitude.q2, attitude.q3, attitude.q4, attitude.rollspeed))

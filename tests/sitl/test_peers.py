@@ -57,11 +57,12 @@ def frame(sysid: int, encode: str, *args) -> bytes:  # type: ignore[no-untyped-d
 
 
 def heartbeat(sysid: int = 255) -> bytes:
-    return frame(sysid, "heartbeat_encode", 6, 8, 0, 0, 4)
+    return frame(sysid, "heartbeat_encode", mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                 mavlink.MAV_STATE_ACTIVE)
 
 
 def interval(msg_id: int, us: float, sysid: int = 255) -> bytes:
-    return frame(sysid, "command_long_encode", 1, 1, 511, 0, msg_id, us, 0, 0, 0, 0, 0)
+    return frame(sysid, "command_long_encode", 1, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, msg_id, us, 0, 0, 0, 0, 0)
 
 
 def join(s: MavlinkServer, addr: tuple[str, int], sysid: int = 255) -> None:
@@ -88,7 +89,7 @@ def test_a_clients_stream_stops_and_rates_change_only_its_own_streams() -> None:
     s.datagram_received(interval(ATT_Q, 20_000), CONTROLLER)
     for msg_id in s.telemetry.encoders:
         s.datagram_received(interval(msg_id, -1, sysid=66), ATTACKER)
-    s.datagram_received(frame(66, "request_data_stream_encode", 1, 1, 0, 0, 0), ATTACKER)
+    s.datagram_received(frame(66, "request_data_stream_encode", 1, 1, mavlink.MAV_DATA_STREAM_ALL, 0, 0), ATTACKER)
     s.datagram_received(interval(ATT_Q, 1_000_000, sysid=66), ATTACKER)
     steps(s, 0.1)
     wire.clear()
