@@ -30,6 +30,7 @@ import argparse
 import dataclasses
 import heapq
 import json
+import math
 import random
 import selectors
 import signal
@@ -90,6 +91,8 @@ class _Direction:
     rng: random.Random
     counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(
         ("received", "forwarded", "lost", "outage", "duplicated", "reordered"), 0))
+    last_due: float = -math.inf
+    """the latest due time given so far: without jitter, a datagram never overtakes an earlier one"""
 
 
 class Relay:
@@ -154,10 +157,13 @@ class Relay:
             c["lost"] += 1
             return
         delay = imp.delay_ms + (rng.uniform(-imp.jitter_ms, imp.jitter_ms) if imp.jitter_ms else 0.0)
-        if rng.random() < imp.reorder:
+        reordered = rng.random() < imp.reorder
+        if reordered:
             c["reordered"] += 1
             delay += imp.reorder_ms
         due = now + max(delay, 0.0) / 1000.0
+        if not (imp.jitter_ms or reordered):
+            due = d.last_due = max(due, d.last_due)
         copies = [due]
         if rng.random() < imp.duplicate:
             c["duplicated"] += 1
@@ -183,6 +189,7 @@ class Relay:
                 pass
 
     def _read(self, sock: socket.socket, upward: bool, now: float) -> None:
+        wall_now = time.time()  # with ``now``, one mapping of kernel stamps for the whole batch
         for _ in range(256):  # bounded: one busy side cannot starve the other
             try:
                 data, anc, _, addr = sock.recvmsg(MAX_DATAGRAM, 64)
@@ -193,7 +200,7 @@ class Relay:
             if upward and not self._from_client(addr, now):
                 self.strangers += 1
                 continue
-            self._schedule(self.up if upward else self.down, data, kernel_arrival(anc, now))
+            self._schedule(self.up if upward else self.down, data, kernel_arrival(anc, now, wall_now))
 
     def _from_client(self, addr: tuple[str, int], now: float) -> bool:
         """Whether a datagram from ``addr`` is the client's (pinning the first sender, or a new one
@@ -232,12 +239,15 @@ class Relay:
                 "impairment": {"up": dataclasses.asdict(self.up.imp), "down": dataclasses.asdict(self.down.imp)}}
 
 
-def kernel_arrival(ancillary: list[tuple[int, int, bytes]], now: float) -> float:
-    """The kernel's arrival stamp (wall clock) on the monotonic clock; ``now`` without one."""
+def kernel_arrival(ancillary: list[tuple[int, int, bytes]], now: float, wall_now: float | None = None) -> float:
+    """The kernel's arrival stamp (wall clock) on the monotonic clock; ``now`` without one.
+    ``wall_now``: the wall clock read with ``now`` (once for a batch of datagrams: read again for
+    each, the later ones would be moved earlier by the time spent reading, and overtake)."""
     for level, kind, data in ancillary:
         if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:
             sec, nsec = struct.unpack("qq", data[:16])
-            return min(now, now - (time.time() - (sec + nsec * 1e-9)))
+            wall = time.time() if wall_now is None else wall_now
+            return min(now, now - (wall - (sec + nsec * 1e-9)))
     return now
 
 

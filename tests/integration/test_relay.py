@@ -83,6 +83,19 @@ def test_loss_rate_is_the_requested_one_and_the_same_seed_loses_the_same_datagra
     assert {i for i, _ in c.send_up(2000)} != got_a
 
 
+def test_without_jitter_or_reordering_every_datagram_keeps_its_place(ends):
+    """A burst of 3000 datagrams with no pause between them, and no impairment: delivered in the order
+    sent, however close their kernel stamps (the stamps were once put on the monotonic clock with a
+    wall-clock reading taken per datagram, which moved later ones earlier by microseconds: ArduCopter's
+    frames behind the relay arrived shuffled, 11,102 of 17,430 out of sequence, and the companion took
+    its one stream for two autopilots). Then the same with a 5 ms delay."""
+    for args in ((), ("--delay-ms", "5")):
+        e = ends(*args)
+        order = [i for i, _ in e.send_up(3000, spacing_s=0.0)]
+        e.relay.stop()
+        assert order == sorted(order), (args, sum(1 for a, b in zip(order, order[1:]) if b < a))
+
+
 def test_delay_and_jitter_and_the_reordering_jitter_causes(ends):
     """20 +- 10 ms uniform: no delay below 10 ms; above 30 ms only by as much as the relay reports it
     went out late (descheduled past a due time: this shared host stalls processes for tens of ms)
