@@ -26,11 +26,11 @@ experiments: setup
 	$(PY) -m sitl.lab.experiments all --out $(OUT)
 
 # everything but the real autopilots two at a time (lockstep flights do not mind a busy host), then
-# the real-autopilot tier one at a time (each test boots PX4 or ArduCopter; skipped with the reason
-# where no build is found - see docs/autopilots.md)
+# the real-autopilot tier: PX4's tests one at a time beside ArduPilot's (each boots its autopilot;
+# skipped with the reason where no build is found - see docs/autopilots.md); the slowest 25 named
 test: setup lint
-	$(PY) -m pytest -q -n 2 -m "not firmware"
-	$(PY) -m pytest -q -m firmware
+	$(PY) -m pytest -q -n 2 -m "not firmware" --durations=25
+	$(PY) -m pytest -q -n 2 --dist loadgroup -m firmware --durations=25
 
 # the long fuzz run (CI runs the same tests with 150 examples each); FUZZ_EXAMPLES to change it
 FUZZ_EXAMPLES ?= 20000
