@@ -81,13 +81,16 @@ def fly(firmware: str, mission: str, controller: str, seed: int, speedup: float,
 
 JUMP_M = 1.0
 """a position change between two 100 Hz samples no vehicle can fly (100 m/s): the estimator reset"""
+JUMP_SPEED_M_S = 20.0
+"""...and, between samples further apart (the record thins out before the flight), faster than this"""
 
 
 def estimator_jump(folder: Path) -> tuple[float, float] | None:
     """(time [s], size [m]) of the first jump of the estimated position, or None."""
     d = load_timeseries(folder)
     step = np.sqrt(np.diff(d["x"]) ** 2 + np.diff(d["y"]) ** 2 + np.diff(d["z"]) ** 2)
-    bad = np.flatnonzero(np.nan_to_num(step, nan=0.0) > JUMP_M)
+    limit = np.maximum(JUMP_M, JUMP_SPEED_M_S * np.diff(d["t"]))
+    bad = np.flatnonzero(np.nan_to_num(step, nan=0.0) > limit)
     return None if bad.size == 0 else (float(d["t"][bad[0] + 1]), float(step[bad[0]]))
 
 
