@@ -26,11 +26,16 @@ experiments: setup
 	$(PY) -m sitl.lab.experiments all --out $(OUT)
 
 # everything but the real autopilots two at a time (lockstep flights do not mind a busy host), then
-# the real-autopilot tier: PX4's tests one at a time beside ArduPilot's (each boots its autopilot;
-# skipped with the reason where no build is found - see docs/autopilots.md); the slowest 25 named
+# the real-autopilot tier: PX4's tests one at a time beside ArduPilot's one at a time (each boots
+# its autopilot; skipped with the reason where no build is found - see docs/autopilots.md);
+# ArduPilot's report follows PX4's; the slowest tests named
+FIRMWARE_LOG ?= .pytest-ardupilot.log
 test: setup lint
 	$(PY) -m pytest -q -n 2 -m "not firmware" --durations=25
-	$(PY) -m pytest -q -n 2 --dist loadgroup -m firmware --durations=25
+	$(PY) -m pytest -q -m "firmware and ardupilot" --durations=10 > $(FIRMWARE_LOG) 2>&1 & ap=$$!; \
+	$(PY) -m pytest -q -m "firmware and not ardupilot" --durations=10; px4=$$?; \
+	wait $$ap; ardupilot=$$?; cat $(FIRMWARE_LOG); rm -f $(FIRMWARE_LOG); \
+	test $$px4 -eq 0 -a $$ardupilot -eq 0
 
 # the long fuzz run (CI runs the same tests with 150 examples each); FUZZ_EXAMPLES to change it
 FUZZ_EXAMPLES ?= 20000
