@@ -22,5 +22,5 @@ def pytest_collection_modifyitems(config, items):
         on_firmware = callspec is not None and "firmware" in callspec.params.values()
         if on_firmware or "tests/autopilots/" in item.nodeid:
             item.add_marker(pytest.mark.firmware)
-            if boots_ardupilot(item.nodeid):
-                item.add_marker(pytest.mark.ardupilot)
+        if item.get_closest_marker("firmware") is not None and boots_ardupilot(item.nodeid):
+            item.add_marker(pytest.mark.ardupilot)
