@@ -108,6 +108,8 @@ class SequenceStreams:
     """frames whose number arrived already within the last REPEAT_WINDOW frames (duplicated on the
     way, or a second sender's counter running close behind the first's)"""
     frames: int = 0
+    extended: int = 0
+    """frames that extended a head (a counting sender's ordinary frames)"""
     seen: list[int] = field(default_factory=lambda: [-REPEAT_WINDOW - 1] * 256)
     """the frame count at which each sequence number last arrived"""
 
@@ -120,6 +122,7 @@ class SequenceStreams:
         if ahead:
             _, head = min(ahead, key=lambda it: it[0])
             head.seq, head.advances, head.last = seq, head.advances + 1, self.frames
+            self.extended += 1
             self.heads = [h for h in self.heads if h is head or h.seq != seq]  # two runs met: one run
             return
         if any((h.seq - seq) % 256 <= SEQ_BEHIND for h in self.heads):
@@ -132,11 +135,13 @@ class SequenceStreams:
     @property
     def senders(self) -> int:
         """How many senders these frames show: 1, or 2 when two runs both went on, or when repeated
-        numbers are over :data:`REPEAT_SHARE` of the frames (two counters that run within
-        SEQ_BEHIND of each other make one run, every frame of the slower sender a repeat)."""
+        numbers and numbers counted on are each over :data:`REPEAT_SHARE` of the frames (two
+        counters that run within SEQ_BEHIND of each other make one run, every frame of the slower
+        sender a repeat; a sender that does not count, every frame number 0, counts nothing on)."""
         if sum(h.advances >= SEQ_ADVANCES for h in self.heads) >= 2:
             return 2
-        return 2 if self.repeats >= REPEATS_MIN and self.repeats > REPEAT_SHARE * self.frames else 1
+        share = REPEAT_SHARE * self.frames
+        return 2 if self.repeats >= REPEATS_MIN and self.repeats > share and self.extended > share else 1
 
 
 @dataclass

@@ -76,6 +76,15 @@ def test_two_senders_at_one_rate_are_two_however_close_their_counters_run(offset
     assert streams.senders == 2
 
 
+def test_a_sender_that_does_not_count_is_one_sender():
+    """Every frame numbered 0 (pymavlink's ``msg.pack(mav)`` does not advance the counter; simple
+    MAVLink code does the same): all repeats, nothing counted on, one sender."""
+    streams = SequenceStreams()
+    for _ in range(300):
+        streams.add(0)
+    assert streams.senders == 1
+
+
 def test_the_absent_target_names_the_systems_heard():
     heard = AutopilotsHeard()
     heard.heartbeat(1, 1, ROUTER)
