@@ -94,15 +94,21 @@ def _mission(tmp_path) -> str:
     return str(p)
 
 
-def test_the_chosen_vehicle_flies_and_the_other_is_never_addressed(tmp_path, sitl, companion):
-    v1, v2 = sitl("--sysid", "1", speedup=4.0), sitl("--sysid", "2", speedup=4.0)
-    router = Router([v1.url, v2.url])
+def fly_behind_a_router(tmp_path, sitl, companion, sysids: tuple[int, ...], *args: str):  # type: ignore[no-untyped-def]
+    """Bundled vehicles of these system ids behind one router, the companion flying the mission
+    through it with ``args``: (exit code, output, router, vehicles)."""
+    vehicles = [sitl("--sysid", str(n), speedup=4.0) for n in sysids]
+    router = Router([v.url for v in vehicles])
     router.start()
     try:
-        c = companion(_mission(tmp_path), router.url, "--target-system", "2")
-        code, out = c.finish()
+        code, out = companion(_mission(tmp_path), router.url, *args).finish()
     finally:
         router.close()
+    return code, out, router, vehicles
+
+
+def test_the_chosen_vehicle_flies_and_the_other_is_never_addressed(tmp_path, sitl, companion):
+    code, out, router, (v1, v2) = fly_behind_a_router(tmp_path, sitl, companion, (1, 2), "--target-system", "2")
     assert code == 0, out
     assert "flying system 2 component 1 (system 2); ignoring systems 1 on this link" in out
     assert 2 in router.armed and router.lowest_z[2] < -1.2  # vehicle 2 armed and climbed to ~1.5 m
@@ -114,41 +120,21 @@ def test_the_chosen_vehicle_flies_and_the_other_is_never_addressed(tmp_path, sit
 
 
 def test_an_absent_target_is_refused_naming_the_systems_heard(tmp_path, sitl, companion):
-    v1 = sitl("--sysid", "1", speedup=4.0)
-    v3 = sitl("--sysid", "3", speedup=4.0)
-    router = Router([v1.url, v3.url])
-    router.start()
-    try:
-        c = companion(_mission(tmp_path), router.url, "--target-system", "2", "--connect-timeout", "4")
-        code, out = c.finish()
-    finally:
-        router.close()
+    code, out, router, _ = fly_behind_a_router(tmp_path, sitl, companion, (1, 3), "--target-system", "2",
+                                               "--connect-timeout", "4")
     assert code != 0 and "no heartbeat from system 2; heard systems 1, 3" in out, out
     assert router.to(1) == {} and router.to(3) == {} and not router.armed
 
 
 def test_without_a_target_two_autopilots_are_refused(tmp_path, sitl, companion):
-    v1, v2 = sitl("--sysid", "1", speedup=4.0), sitl("--sysid", "2", speedup=4.0)
-    router = Router([v1.url, v2.url])
-    router.start()
-    try:
-        c = companion(_mission(tmp_path), router.url, "--connect-timeout", "10")
-        code, out = c.finish()
-    finally:
-        router.close()
+    code, out, router, _ = fly_behind_a_router(tmp_path, sitl, companion, (1, 2), "--connect-timeout", "10")
     assert code != 0 and "more than one autopilot on this link: systems 1, 2" in out, out
     assert router.to(1) == {} and router.to(2) == {} and not router.armed
 
 
 def test_two_vehicles_with_the_same_system_id_are_refused(tmp_path, sitl, companion):
-    va, vb = sitl("--sysid", "2", speedup=4.0), sitl("--sysid", "2", speedup=4.0)
-    router = Router([va.url, vb.url])
-    router.start()
-    try:
-        c = companion(_mission(tmp_path), router.url, "--target-system", "2", "--connect-timeout", "10")
-        code, out = c.finish()
-    finally:
-        router.close()
+    code, out, router, _ = fly_behind_a_router(tmp_path, sitl, companion, (2, 2), "--target-system", "2",
+                                               "--connect-timeout", "10")
     assert code != 0 and "two autopilots claim system 2 component 1" in out, out
     assert not router.armed
     assert "SET_ATTITUDE_TARGET" not in router.to(2) and "PARAM_SET" not in router.to(2), router.to(2)
