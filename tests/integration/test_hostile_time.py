@@ -24,6 +24,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from helpers.mitm import Mitm
+from helpers.missions import hold_mission
 from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT
 
 from companion.mavlink.boot_time import BOOT_MS_PERIOD_S
@@ -83,26 +84,7 @@ WRAP_AFTER_S = 40.0
 starts 15-20 s after start here (connection, take-off and offboard at up to 8x), so the wrap falls
 inside it even if connecting took another 2.5 s of wall time"""
 
-HOLD_ACROSS_THE_WRAP = """name = "hold_wrap"
-[controller]
-position = "ism_do"
-rate_hz = 100
-[safety.volume]
-max_distance_m = 10.0
-max_altitude_m = 6.0
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-[[steps]]
-action = "offboard"
-[[steps]]
-name = "hold"
-action = "hold"
-duration_s = 40.0
-position_ned_m = [0.0, 0.0, -1.5]
-[[steps]]
-action = "land"
-"""
+HOLD_ACROSS_THE_WRAP = hold_mission("hold_wrap", 40.0, volume=(10.0, 6.0))
 
 
 def test_a_vehicle_up_49_7_days_wraps_time_boot_ms_mid_hover_and_the_mission_completes(sitl, companion, tmp_path):

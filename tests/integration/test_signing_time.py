@@ -19,6 +19,7 @@ from companion.mavlink.modes import px4_custom_mode
 from companion.control import quaternion as quat
 from companion.mavlink.signing import signing_timestamp, write_key_file
 
+from helpers.missions import hold_mission
 from helpers.processes import free_udp_port
 from .test_companion_e2e import WAIT, segments
 from .test_link_faults import Observer
@@ -29,23 +30,7 @@ SPEEDUP = 2.0
 """both vehicles of the first test run at once beside two companions on this 2-core host"""
 LATER_S = 65.0
 """more than the one minute a new stream may lag our clock (NEW_STREAM_WINDOW)"""
-SHORT_HOLD = """name = "short"
-[controller]
-position = "ism_do"
-rate_hz = 100
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-[[steps]]
-action = "offboard"
-[[steps]]
-name = "hold"
-action = "hold"
-duration_s = 8.0
-position_ned_m = [0.0, 0.0, -1.5]
-[[steps]]
-action = "land"
-"""
+SHORT_HOLD = hold_mission("short", 8.0)
 
 
 def test_ends_started_more_than_a_minute_apart_trust_each_other(sitl, companion, tmp_path, record_property):

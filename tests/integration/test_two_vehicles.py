@@ -13,23 +13,9 @@ from collections import Counter
 from pymavlink.dialects.v20 import common as mavlink
 
 from companion.mavlink.wire import new_parser, parse_datagram
+from helpers.missions import hold_mission
 
-MISSION = """name = "two"
-[safety.volume]
-max_distance_m = 10.0
-max_altitude_m = 6.0
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-[[steps]]
-action = "offboard"
-[[steps]]
-action = "hold"
-duration_s = 2.0
-position_ned_m = [0.0, 0.0, -1.5]
-[[steps]]
-action = "land"
-"""
+MISSION = hold_mission("two", 2.0, controller=False, volume=(10.0, 6.0), hold_name=None)
 
 
 class Router(threading.Thread):
