@@ -18,8 +18,8 @@ that offset (:class:`~companion.link.state.VehicleState` applies it). A reset is
 - **announced**: the same jump within ``ANNOUNCE_WINDOW_S`` of a change of the reset counter
   (before or after: the counter and the position are separate streams), labelled so. The floor
   holds for it too: the counter also counts heading and velocity resets, and PX4's SIH changes it
-  again and again beside 0.09-0.19 m steps, its GPS corrections; re-anchored on each, the
-  companion's frame walked away from PX4's. An announcement with no jump is counted, not applied.
+  again and again beside 0.09-0.19 m steps, its GPS corrections, which must not move the
+  companion's frame away from PX4's. An announcement with no jump is counted, not applied.
 
 Pure: samples and times in, decisions out; no clock, no I/O.
 """

@@ -1,7 +1,6 @@
 """PX4's event catalogue as it arrives over MAVLink FTP: a good one reads, and anything else (a
 corrupt or cut download, two vehicles' answers interleaved, an xz bomb, JSON of the wrong shape)
-is one ValueError the link reports, never a crash of the companion (a corrupt download once
-ended a flight with an LZMAError in an exception group)."""
+is one ValueError the link reports, never a crash of the companion."""
 
 import lzma
 

@@ -63,9 +63,9 @@ def test_an_unannounced_jump_is_found_on_its_first_sample_and_re_anchored():
 
 def test_a_small_step_is_flown_announced_or_not_and_a_large_one_is_labelled_either_way():
     """10 cm is under the 25 cm floor: a correction like any other, even beside a counter change
-    (PX4's SIH changes it again and again beside 0.09-0.19 m GPS corrections; re-anchored on them,
-    the companion's frame walked away from PX4's and two flights failed PX4's own figure). A 4 m
-    jump is a reset, labelled announced whether the counter changes after it or just before."""
+    (PX4's counter also counts heading and velocity resets; SIH changes it beside 0.09-0.19 m GPS
+    corrections). A 4 m jump is a reset, labelled announced whether the counter changes after it
+    or just before."""
     quiet = ResetDetector(BUNDLED)
     assert fly(quiet, 120, jump_at=60, jump=(0.1, 0.0, 0.0)) == []
     told = ResetDetector(BUNDLED)

@@ -62,8 +62,8 @@ def test_two_interleaved_senders_are_two_even_when_one_sends_a_tenth_as_much(rat
 
 @pytest.mark.parametrize("offset", [0, 1, 5, 16, 17, 31, 40, 128, 250])
 def test_two_senders_at_one_rate_are_two_however_close_their_counters_run(offset):
-    """Counters within SEQ_BEHIND of each other make one run, the other sender's frames late
-    (bundled vehicles with salts 5 apart once flew as one in CI); within the survey's frames."""
+    """Counters within SEQ_BEHIND of each other make one run, the other sender's frames repeats:
+    still two senders, within the survey's 100 frames."""
     rng = random.Random(offset)
     streams = SequenceStreams()
     a, b = 0, offset

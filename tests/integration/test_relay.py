@@ -85,10 +85,8 @@ def test_loss_rate_is_the_requested_one_and_the_same_seed_loses_the_same_datagra
 
 def test_without_jitter_or_reordering_every_datagram_keeps_its_place(ends):
     """A burst of 3000 datagrams with no pause between them, and no impairment: delivered in the order
-    sent, however close their kernel stamps (the stamps were once put on the monotonic clock with a
-    wall-clock reading taken per datagram, which moved later ones earlier by microseconds: ArduCopter's
-    frames behind the relay arrived shuffled, 11,102 of 17,430 out of sequence, and the companion took
-    its one stream for two autopilots). Then the same with a 5 ms delay."""
+    sent, however close their kernel stamps (docs/faults.md: the relay that reordered bursts). Then
+    the same with a 5 ms delay."""
     for args in ((), ("--delay-ms", "5")):
         e = ends(*args)
         order = [i for i, _ in e.send_up(3000, spacing_s=0.0)]
