@@ -756,21 +756,6 @@ def _source(msg: Any, kind: str) -> tuple[int, int]:
     return msg.get_srcSystem(), msg.get_srcComponent()
 
 
-def _source(msg: Any, kind: str) -> tuple[int, int]:
-    """Sending system and component; read from the frame for messages pymavlink could not decode
-    (it leaves their header unset)."""
-    if kind.startswith("UNKNOWN_"):
-        raw = bytes(msg.get_msgbuf())
-        return (raw[5], raw[6]) if raw[:1] == b"\xfd" else (raw[3], raw[4])
-    return msg.get_srcSystem(), msg.get_srcComponent()
-
-
-def _reasons(texts: list[tuple[int, str]], most: int = 4) -> str:
-    """What the autopilot said after a refusal, the most severe first (MAV_SEVERITY: lower is worse)."""
-    ranked = sorted(enumerate(texts), key=lambda it: (it[1][0], -it[0]))[:most]
-    return "; ".join(text for _, (_, text) in ranked)
-
-
 def nothing_heard(e: Endpoint, after_s: float) -> str:
     """What to check when nothing at all arrived."""
     if e.kind == "udpout":
