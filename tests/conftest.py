@@ -24,11 +24,3 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.firmware)
         if item.get_closest_marker("firmware") is not None and boots_ardupilot(item.nodeid):
             item.add_marker(pytest.mark.ardupilot)
-    items.sort(key=lambda item: not runs_processes(item))  # long ones first: the two workers end together
-
-
-def runs_processes(item) -> bool:  # type: ignore[no-untyped-def]
-    """Whether a test flies real processes or closed loops (seconds to minutes each, where a unit test
-    takes milliseconds): started first, they do not leave one worker running alone at the end."""
-    return item.nodeid.startswith(("tests/integration/", "tests/contract/")) or \
-        item.get_closest_marker("slow") is not None
