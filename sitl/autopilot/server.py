@@ -50,6 +50,7 @@ from ..percentiles import percentiles_ms
 from .events import catalogue, event_id
 from .guard import StepGuard
 from .logic import Autopilot, MavResult, Severity
+from .pacing import REPEAT_WALL_S, Wait, WorldPacing
 from .shaping import NAN3, TrajectoryTarget, body_to_ned
 from .parameters import ParamTable, build_parameters
 from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
@@ -181,21 +182,15 @@ class MavlinkServer:
         self._param_budget = Bucket(PARAM_VALUES_PER_S, 2.0 * PARAMS_PER_STEP)
         self._newcomer_streams = Bucket(NEWCOMER_STREAMS_PER_SIM_S * cfg.speedup, 100.0)
         self.transport: UdpEndpoint | None = None
-        self.step_lateness_s: deque[float] = deque(maxlen=100_000)
-        """wall-clock lateness of the latest loop passes, for the latency benchmark"""
+        self.pacing = WorldPacing(cfg.speedup, ap.dt, cfg.lockstep_period_s, cfg.wait_for_setpoints_s,
+                                  cfg.max_wait_wall_s, cfg.max_catchup_wall_s, self.stats)
+        """when the world may step (sitl.autopilot.pacing)"""
         self.setpoint_age_s: deque[float] = deque(maxlen=100_000)
         """vehicle seconds from a setpoint's telemetry stamp to its arrival, the latest ones"""
         self.setpoint_age_max_s = 0.0
         """the same, the largest since start"""
         self._next_due = 0.0
         self._last_warning: dict[str, float] = {}
-        self._acted_on_t = -math.inf
-        """the newest setpoint's telemetry stamp (its arrival if unstamped) [simulated s]"""
-        self._wait_start: float | None = None
-        self._wait_repeat_due = 0.0
-        self._gave_up_waiting_on = math.nan
-        self.longest_wait_s = 0.0
-        """the longest the world waited for a setpoint [wall s]"""
         self._setpoint_arrived = asyncio.Event()
         self._forwarded: dict[tuple[str, int], tuple[float, int]] = {}
         self._event_seq = 0
@@ -593,9 +588,9 @@ class MavlinkServer:
         if time_boot_ms and 0.0 <= age < 60.0:
             self.setpoint_age_s.append(age)
             self.setpoint_age_max_s = max(self.setpoint_age_max_s, age)
-            self._acted_on_t = stamp_t
+            self.pacing.setpoint(stamp_t)
         else:
-            self._acted_on_t = self.ap.t
+            self.pacing.setpoint(self.ap.t)
         self._setpoint_arrived.set()
 
     def _set_position_target_global(self, msg: Any) -> None:
@@ -793,7 +788,7 @@ class MavlinkServer:
 
     def lateness_ms(self) -> dict[str, float]:
         """Percentiles of how late (wall clock) the loop started steps that were due."""
-        return percentiles_ms(self.step_lateness_s)
+        return percentiles_ms(self.pacing.lateness_s)
 
     def setpoint_age_ms(self) -> dict[str, float]:
         """Percentiles of the age of stamped setpoints on arrival [vehicle ms] (the latest 100k), and
@@ -817,48 +812,35 @@ class MavlinkServer:
         return self.transport.sockname
 
     async def run(self, stop: asyncio.Event, duration_s: float | None = None) -> None:
-        """Step in real time x ``speedup`` until ``stop`` is set (or ``duration_s`` simulated)."""
+        """Step as :class:`~sitl.autopilot.pacing.WorldPacing` says until ``stop`` is set (or
+        ``duration_s`` simulated)."""
         if self.transport is None:
             await self.start()
-        ap, speedup = self.ap, self.config.speedup
-        dt = ap.dt
-        wall0, sim0 = time.monotonic(), ap.t
-        self._run_wall0, self._run_sim0 = wall0, ap.t
-        lateness = self.step_lateness_s
-        last_expire = wall0
+        ap, pacing = self.ap, self.pacing
+        pacing.start(time.monotonic(), ap.t)
+        last_expire = pacing.run_wall0
         try:
             while not stop.is_set():
                 if duration_s is not None and ap.t >= duration_s:
                     break
                 now = time.monotonic()
-                if self._waiting_for_setpoints(now):
-                    wall0, sim0 = now - dt / speedup, ap.t  # resume from here, with no catching up
+                wait = pacing.wait(now, ap.t, ap.follows_stream)
+                if wait is not Wait.RUN:
+                    if wait is Wait.BEGIN:
+                        self._send_state_now()
+                    elif wait is Wait.REPEAT:
+                        self._repeat_state()
+                    pacing.resume(now, ap.t)
                     self._setpoint_arrived.clear()
-                    if self._setpoint_late():  # the datagram handler sets the event
-                        with contextlib.suppress(TimeoutError):
-                            await asyncio.wait_for(self._setpoint_arrived.wait(), 0.02)
+                    with contextlib.suppress(TimeoutError):  # the datagram handler sets the event
+                        await asyncio.wait_for(self._setpoint_arrived.wait(), REPEAT_WALL_S)
                     continue
-                target = sim0 + (now - wall0) * speedup
-                due_wall = wall0 + (ap.t + dt - sim0) / speedup
-                locked = self._lockstep_active()
-                if locked:
-                    # the companion sets the pace: run to the next stop at once, no wall-clock pacing
-                    target = max(target, self._acted_on_t + self.config.lockstep_period_s)
-                elif now >= due_wall:
-                    lateness.append(now - due_wall)
-                behind = target - ap.t
-                if not locked and behind > self.config.max_catchup_wall_s * speedup:
-                    # stalled (a busy host) or too slow for the speed-up: pause the world instead of
-                    # racing through it; counted, and the lost simulated time summed
-                    self.stats["overruns"] += 1
-                    self.stats["skipped_ms"] += round((behind - dt) * 1e3)
-                    wall0, sim0 = now - dt / speedup, ap.t
-                    target = ap.t + dt
+                step = pacing.plan(now, ap.t, ap.follows_stream)
                 steps = 0
-                while ap.t + 0.5 * dt <= target:
+                while ap.t + 0.5 * ap.dt <= step.target_t:
                     self.step()
                     steps += 1
-                    if self._setpoint_late():
+                    if pacing.late(ap.t, ap.follows_stream):
                         break  # catching up, too: never more than the wait ahead of the companion
                     if steps % 50 == 0:
                         await asyncio.sleep(0)  # let datagrams in during long catch-ups
@@ -867,37 +849,23 @@ class MavlinkServer:
                 if now - last_expire > 1.0:
                     self._expire_peers()
                     last_expire = now
-                if locked:
-                    wall0, sim0 = time.monotonic() - dt / speedup, ap.t  # paced by setpoints, not the wall
-                next_wall = wall0 + (ap.t + dt - sim0) / speedup
-                pause = max(0.0, next_wall - time.monotonic())
-                self.idle_s += pause
-                await asyncio.sleep(pause)
+                await asyncio.sleep(pacing.sleep_s(time.monotonic(), ap.t, step.locked))
         finally:
-            self.run_wall_s = time.monotonic() - self._run_wall0
-            self.run_sim_s = ap.t - self._run_sim0
+            self.run_wall_s = time.monotonic() - pacing.run_wall0
             if self.transport is not None:
                 self.transport.close()
                 self.transport = None
 
-    idle_s = 0.0
-    """wall seconds the loop slept between steps because it was ahead of time (its headroom)"""
-    run_wall_s = 0.0
-    run_sim_s = 0.0
-    _run_wall0 = 0.0
-    _run_sim0 = 0.0
+    run_wall_s: float | None = None
+    """wall seconds :meth:`run` lasted, once it has returned"""
+
+    @property
+    def longest_wait_s(self) -> float:
+        return self.pacing.longest_wait_s
 
     def pace(self) -> dict[str, float]:
-        """How the world kept its speed: simulated and wall seconds of :meth:`run` so far, their
-        ratio against the speed-up asked for, the fraction of wall time spent asleep ahead of
-        time (headroom), and the simulated time skipped after stalls (docs/sitl.md, Time)."""
-        wall = self.run_wall_s or (time.monotonic() - self._run_wall0 if self._run_wall0 else 0.0)
-        sim = self.run_sim_s or (self.ap.t - self._run_sim0)
-        return {"wall_s": round(wall, 3), "sim_s": round(sim, 3),
-                "speedup": round(sim / wall, 3) if wall > 0 else 0.0, "speedup_asked": self.config.speedup,
-                "idle_fraction": round(self.idle_s / wall, 3) if wall > 0 else 0.0,
-                "skipped_s": round(self.stats.get("skipped_ms", 0) / 1000.0, 3)}
-
+        """How the world kept its speed (:meth:`WorldPacing.report`)."""
+        return self.pacing.report(time.monotonic(), self.ap.t, self.run_wall_s)
 
     def step(self) -> None:
         """One plant step and the telemetry due; whatever goes wrong, the loop goes on (a fault in
@@ -909,52 +877,6 @@ class MavlinkServer:
                 self._drain_messages()
         except Exception:
             self.stats["telemetry_errors"] += 1
-
-    def _lockstep_active(self) -> bool:
-        ap = self.ap
-        return (self.config.lockstep_period_s > 0 and ap.follows_stream
-                and self._acted_on_t != self._gave_up_waiting_on)
-
-    def _setpoint_late(self) -> bool:
-        ap, cfg = self.ap, self.config
-        if not ap.follows_stream or self._acted_on_t == self._gave_up_waiting_on:
-            return False
-        if cfg.lockstep_period_s > 0:
-            return ap.t >= self._acted_on_t + cfg.lockstep_period_s - 0.5 * ap.dt
-        return cfg.wait_for_setpoints_s > 0 and ap.t - self._acted_on_t > cfg.wait_for_setpoints_s
-
-    def _waiting_for_setpoints(self, now: float) -> bool:
-        """True while the world waits for a late setpoint (``ServerConfig.wait_for_setpoints_s``) or
-        for the next one in lockstep (``ServerConfig.lockstep_period_s``)."""
-        late = self._setpoint_late()
-        if late and self._wait_start is None:
-            self._wait_start, self._wait_repeat_due, self._wait_awake_s = now, now + 0.02, 0.0
-            self._wait_checked = now
-            self.stats["setpoint_waits"] += 1
-            if self.config.lockstep_period_s > 0:
-                self._send_state_now()
-        if late:
-            # awake time only: a stall of the whole machine (both processes) is not the stream going
-            self._wait_awake_s += min(now - self._wait_checked, 0.02)
-            self._wait_checked = now
-            if self._wait_awake_s > self.config.max_wait_wall_s:
-                self._gave_up_waiting_on = self._acted_on_t  # gone, not late: time runs on
-                self.stats["lockstep_gave_up"] += 1
-                late = False
-        if late:
-            if now >= self._wait_repeat_due:
-                self._wait_repeat_due = now + 0.02
-                self._repeat_state()
-            return True
-        if self._wait_start is not None:
-            waited = now - self._wait_start
-            self._wait_start = None
-            self.stats["waited_ms"] += round(waited * 1e3)
-            self.longest_wait_s = max(self.longest_wait_s, waited)
-        return False
-
-    _wait_awake_s = 0.0
-    _wait_checked = 0.0
 
     def _send_state_now(self) -> None:
         """Lockstep: the state at the stop, now, to each peer that streams it and has not had this
