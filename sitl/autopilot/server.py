@@ -27,7 +27,7 @@ import math
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 # commands answered by the server itself (the rest go to the autopilot)
@@ -230,30 +230,31 @@ class MavlinkServer:
         peer.seq, self.mav.seq = (peer.seq + 1) % 256, shared
         return buf
 
-    def send(self, msg: mavlink.MAVLink_message) -> None:
-        """To every peer (STATUSTEXT, parameter changes)."""
-        if self.transport is None or not len(self.peers):
+    def _deliver(self, to: Iterable[Peer | Address], payload: mavlink.MAVLink_message | bytes,
+                 count: bool = True) -> None:
+        """The one way out: ``payload`` to each of ``to``. A message is packed in each peer's own
+        sequence (an address that is no peer: the shared one); a frame packed elsewhere (an event, a
+        frame forwarded) goes as it is. ``count``: one more in ``sent`` however many receive it
+        (telemetry counts a message once when it encodes it)."""
+        if self.transport is None:
             return
-        for peer in self.peers:
-            self.transport.sendto(self._pack(msg, peer), peer.addr)
-        self.stats["sent"] += 1
+        sendto = self.transport.sendto
+        frame = payload if isinstance(payload, bytes) else None
+        any_sent = False
+        for dest in to:
+            peer, addr = (dest, dest.addr) if isinstance(dest, Peer) else (self.peers.get(dest), dest)
+            sendto(frame if frame is not None else self._pack(payload, peer), addr)  # type: ignore[arg-type]
+            any_sent = True
+        if count and any_sent:
+            self.stats["sent"] += 1
+
+    def send(self, msg: mavlink.MAVLink_message | bytes) -> None:
+        """To every peer (STATUSTEXT, events, parameter changes)."""
+        self._deliver(self.peers, msg)
 
     def reply(self, msg: mavlink.MAVLink_message) -> None:
         """To the client whose request is being handled (to every peer if none is)."""
-        if self._source is None:
-            self.send(msg)
-            return
-        if self.transport is None:
-            return
-        self.transport.sendto(self._pack(msg, self.peers.get(self._source)), self._source)
-        self.stats["sent"] += 1
-
-    def _send_to(self, peers: list[Peer], msg: mavlink.MAVLink_message) -> None:
-        if self.transport is None or not peers:
-            return
-        for peer in peers:
-            self.transport.sendto(self._pack(msg, peer), peer.addr)
-        self.stats["sent"] += 1
+        self._deliver(self.peers if self._source is None else [self._source], msg)
 
     def say(self, severity: int, text: str) -> None:
         self.send(self.telemetry.statustext(severity, text))
@@ -267,15 +268,8 @@ class MavlinkServer:
                 self.say(int(sev), text)
             else:  # PX4 v1.16 reports these as EVENTs (readable with the catalogue it serves over FTP)
                 self._event_seq += 1
-                self._send_raw(encode_event_frame(self._event_seq, self.config.sysid, self.config.compid, ev,
-                                                  self.telemetry.time_boot_ms, self._event_seq, int(sev)))
-
-    def _send_raw(self, frame: bytes) -> None:
-        if self.transport is None:
-            return
-        for peer in self.peers:
-            self.transport.sendto(frame, peer.addr)
-        self.stats["sent"] += 1
+                self.send(encode_event_frame(self._event_seq, self.config.sysid, self.config.compid, ev,
+                                             self.telemetry.time_boot_ms, self._event_seq, int(sev)))
 
     def _file_transfer(self, msg: Any) -> None:
         """MAVLink FTP, read-only and one file: the event catalogue (what PX4 serves at this path)."""
@@ -352,12 +346,11 @@ class MavlinkServer:
                 self.stats["sent"] += 1
         rank = {m: i for i, m in enumerate(order)}
         attitude = mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION
-        sendto = self.transport.sendto
         for peer, ids in plan:
             for msg_id in sorted(ids, key=rank.__getitem__):
                 msg = encoded[msg_id]
                 if msg is not None:  # None: nothing valid to say now (e.g. no position)
-                    sendto(self._pack(msg, peer), peer.addr)
+                    self._deliver((peer,), msg, count=False)
                     if msg_id == attitude:
                         peer.state_sent_ms = self.telemetry.time_boot_ms
                 peer.sent(msg_id, t)
@@ -452,9 +445,7 @@ class MavlinkServer:
             self._forwarded.clear()
         if self.transport is None:
             return
-        for peer in self.peers:
-            if peer.addr != addr:
-                self.transport.sendto(frame, peer.addr)
+        self._deliver([peer for peer in self.peers if peer.addr != addr], frame, count=False)
         self.stats["forwarded"] += 1
 
     def _drop_unauthentic(self, msg: Any, kind: str, reason: str) -> None:
@@ -658,7 +649,7 @@ class MavlinkServer:
                 budget -= 1
                 msg = self._param_value_msg(peer.param_cursor)
                 if msg is not None:
-                    self._send_to([peer], msg)
+                    self._deliver((peer,), msg)
                 peer.param_cursor += 1
                 if peer.param_cursor >= len(self.params):
                     peer.param_cursor = None
@@ -899,7 +890,7 @@ class MavlinkServer:
             if to:
                 msg = enc[msg_id]()
                 if msg is not None:
-                    self._send_to(to, msg)
+                    self._deliver(to, msg)
 
 
 _TYPEMASK_POS = (mavlink.POSITION_TARGET_TYPEMASK_X_IGNORE, mavlink.POSITION_TARGET_TYPEMASK_Y_IGNORE,
