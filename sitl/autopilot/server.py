@@ -214,6 +214,16 @@ class MavlinkServer:
             "MISSION_CLEAR_ALL": self._mission_clear_all,
             "SERIAL_CONTROL": self._serial_control,
         }
+        self._link_commands: dict[int, Callable[[Any, int, tuple[float, ...]], None]] = {
+            MAV_CMD_SET_MESSAGE_INTERVAL:
+                lambda msg, cmd, p: self._ack(msg, cmd, self._set_message_interval(p[0], p[1])),
+            MAV_CMD_REQUEST_MESSAGE: lambda msg, cmd, p: self._request_message(msg, cmd, p[0]),
+            MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
+                lambda msg, cmd, p: self._request_message(msg, cmd, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION),
+            MAV_CMD_GET_HOME_POSITION:
+                lambda msg, cmd, p: self._request_message(msg, cmd, mavlink.MAVLINK_MSG_ID_HOME_POSITION),
+        }
+        """commands the server answers itself: message rates and one-off messages"""
 
     # --- sending -------------------------------------------------------------------------
 
@@ -492,19 +502,16 @@ class MavlinkServer:
         self._command(msg, msg.command, params)
 
     def _command(self, msg: Any, command: int, params: tuple[float, ...]) -> None:
-        if command == MAV_CMD_SET_MESSAGE_INTERVAL:
-            self._ack(msg, command, self._set_message_interval(params[0], params[1]))
-        elif command == MAV_CMD_REQUEST_MESSAGE:
-            self._request_message(msg, command, params[0])
-        elif command == MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-            self._request_message(msg, command, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
-        elif command == MAV_CMD_GET_HOME_POSITION:
-            self._request_message(msg, command, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
-        else:
-            result = self.ap.command(command, params, msg.get_srcSystem())
-            if result.result != MavResult.ACCEPTED:
-                self.rejections[_bounded_key(self.rejections, f"command {command}: {result.reason}")] += 1
-            self._ack(msg, command, int(result.result))
+        """The commands about the link are answered here (:attr:`_link_commands`); the rest go to the
+        autopilot, and its result is the acknowledgement."""
+        answer = self._link_commands.get(command)
+        if answer is not None:
+            answer(msg, command, params)
+            return
+        result = self.ap.command(command, params, msg.get_srcSystem())
+        if result.result != MavResult.ACCEPTED:
+            self.rejections[_bounded_key(self.rejections, f"command {command}: {result.reason}")] += 1
+        self._ack(msg, command, int(result.result))
 
     def _set_message_interval(self, msg_id: float, interval_us: float) -> int:
         if not (math.isfinite(msg_id) and math.isfinite(interval_us)):
