@@ -21,6 +21,7 @@ from companion.control.vector import Vec3, add, scale
 
 from .control_time import ControllerTime, default_lead_s
 from .guard import SetpointGuard
+from .output import Output
 from companion.link.state import VehicleState
 from .thrust_scale import ThrustScaleEstimator
 
@@ -136,6 +137,8 @@ class OffboardController:
     trajectory: TrajectoryParams
     thrust: ThrustScaleEstimator
     guard: SetpointGuard
+    output: Output = Output("attitude_rates", "")
+    """what of the setpoint goes on the wire (flight/output.py); the guard judges that"""
     estimate_thrust: bool = True
     period_s: float = 0.01
     max_error_m: float = MAX_POSITION_ERROR_M
@@ -213,6 +216,7 @@ class OffboardController:
             self.thrust.update(estimate, state.q, float(att.thrust_n), dt_s)
         u = min(max(self.thrust.normalise(float(att.thrust_n)), 0.0), 1.0)
         q = tuple(float(c) for c in quat.positive_scalar(att.q_d))
-        sp = Setpoint(q, tuple(float(w) for w in att.omega_d_rad_s), u)  # type: ignore[arg-type]
+        rates = self.output.wire_rates(state.q, q, att.omega_d_rad_s, self.guard.max_rate_rad_s)  # type: ignore[arg-type]
+        sp = Setpoint(q, rates, u)  # type: ignore[arg-type]
         rejected = self.guard.check(sp.q, sp.body_rates_rad_s, sp.thrust)
         return Tick(t, ref, att, self.loop.force_n, estimate, sp, rejected)

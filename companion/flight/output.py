@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 from companion.control.quaternion import Quat
 from companion.control.rate_command import body_rate_command
-from companion.control.vector import Vec3
+from companion.control.vector import Vec3, clip_norm
 from companion.mavlink.setpoints import ATTITUDE_IGNORED, RATES_IGNORED, ROLL_PITCH_RATES_IGNORED
 
 __all__ = ["OUTPUT_MODES", "Output", "choose_output"]
@@ -61,6 +61,12 @@ class Output:
         if self.autopilot == "ardupilot":
             return (0.0, 0.0, 0.0)
         return (0.0, 0.0, omega_d_rad_s[2])
+
+
+    def wire_rates(self, q: Quat, q_d: Quat, omega_d_rad_s: Vec3, max_rate_rad_s: float) -> Vec3:
+        """The body rates as they go on the wire: this mode's (:meth:`rates`), at most
+        ``max_rate_rad_s`` in norm. The setpoint guard judges these, not the law's own."""
+        return tuple(float(w) for w in clip_norm(self.rates(q, q_d, omega_d_rad_s), max_rate_rad_s))  # type: ignore[return-value]
 
 
 def choose_output(requested: str, autopilot: str) -> Output:

@@ -30,7 +30,6 @@ from pathlib import Path
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control.params import PositionGains
-from companion.control.vector import clip_norm
 from companion.link import LinkError, VehicleLink, open_link
 from companion.link.resets import UNSTABLE_RESETS, UNSTABLE_WINDOW_S, ResetBound
 from companion.mavlink.identity import VehicleTarget, resolve_target
@@ -157,7 +156,8 @@ class Flight:
         self.finished = asyncio.Event()
         self.interrupted = asyncio.Event()
         self._new_setpoint = asyncio.Event()
-        self._setpoint: Setpoint | PositionTarget | None = None
+        self._setpoint: tuple[Setpoint | PositionTarget, float] | None = None
+        """the newest setpoint to stream, and the vehicle time of the telemetry it was computed from [s]"""
         self.sent = 0
         self.rejected = 0
         self.grid = TickGrid(1.0 / self.rate_hz)
@@ -354,12 +354,9 @@ class Flight:
                 # a tick with no new vehicle time to step re-sends the last setpoint
                 tick, moved = self.control.update(state, t_next)
                 if tick is not None and tick.rejected is None:
-                    sp = tick.setpoint
-                    if isinstance(sp, Setpoint):
-                        rates = clip_norm(self.output.rates(state.q, sp.q, sp.body_rates_rad_s),
-                                          self.guard.max_rate_rad_s)
-                        sp = sp._replace(body_rates_rad_s=tuple(float(w) for w in rates))
-                    self._setpoint = sp
+                    # stamped with the telemetry this tick flew on (lockstep lets the world run
+                    # one period past it), not whatever is newest when the streamer sends it
+                    self._setpoint = (tick.setpoint, state.t)
                     self._new_setpoint.set()
                     sent = True
                 elif tick is not None and moved:
@@ -432,15 +429,16 @@ class Flight:
             except TimeoutError:
                 continue
             self._new_setpoint.clear()
-            sp = self._setpoint
-            if sp is None or not self.engaged or self.stale:
+            if self._setpoint is None or not self.engaged or self.stale:
                 continue
+            sp, stamp_s = self._setpoint
             if isinstance(sp, PositionTarget):  # in the autopilot's frame: its estimate, resets and all
                 o = self.link.state.resets.offset_ned_m
                 pos = (sp.pos_ned_m[0] + o[0], sp.pos_ned_m[1] + o[1], sp.pos_ned_m[2] + o[2])
-                self.link.send_position_target(pos, sp.vel_ned_m_s, sp.accel_ned_m_s2, sp.yaw_rad)
+                self.link.send_position_target(pos, sp.vel_ned_m_s, sp.accel_ned_m_s2, sp.yaw_rad, stamp_s=stamp_s)
             else:
-                self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust, self.output.type_mask)
+                self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust, self.output.type_mask,
+                                               stamp_s=stamp_s)
             self.sent += 1
             t_sent = self.link.state.t
             if math.isnan(self._first_sent_t):
@@ -608,7 +606,7 @@ class Flight:
         self.control = OffboardController(
             self.controller_name, m.vehicle, gains if isinstance(gains, PositionGains) else PositionGains(),
             reference, m.trajectory, ThrustScaleEstimator(t_max, adapt=m.thrust.adapt),
-            self.guard, estimate_thrust=m.thrust.estimate, period_s=1.0 / self.rate_hz,
+            self.guard, output=self.output, estimate_thrust=m.thrust.estimate, period_s=1.0 / self.rate_hz,
         )
 
     async def arm(self, timeout_s: float) -> None:

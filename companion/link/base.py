@@ -189,14 +189,18 @@ class VehicleLink(abc.ABC):
     async def land(self) -> None: ...
 
     @abc.abstractmethod
-    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0) -> None:
+    def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0,
+                             stamp_s: float | None = None) -> None:
         """SET_ATTITUDE_TARGET with quaternion, body rates, normalised thrust and the ignore bits,
-        now (no await)."""
+        now (no await). ``time_boot_ms`` is ``stamp_s``, the vehicle time of the telemetry the
+        setpoint was computed from (None: the newest), which the bundled vehicle's lockstep and
+        the firmware bridge's wait on."""
 
     @abc.abstractmethod
-    def send_position_target(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, yaw_rad: float) -> None:
+    def send_position_target(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, yaw_rad: float,
+                             stamp_s: float | None = None) -> None:
         """SET_POSITION_TARGET_LOCAL_NED with position, velocity, acceleration and yaw, now: the
-        autopilot's own position control flies it."""
+        autopilot's own position control flies it (``stamp_s`` as for attitude targets)."""
 
     @abc.abstractmethod
     def send_debug(self, t_s: float, vectors: dict[str, Vec3], values: dict[str, float]) -> None:
