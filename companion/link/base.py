@@ -15,6 +15,7 @@ from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 from companion.link.stamps import Admitted, StampGate
 from companion.link.state import VehicleState
+from companion.mavlink.identity import VehicleTarget
 
 from .flavour import Flavour
 
@@ -84,9 +85,35 @@ class VehicleLink(abc.ABC):
     clock: VehicleClock
     flavour: Flavour | None
     stats: Counter[str]
+    target: VehicleTarget
+    """which autopilot on the link to fly (--target-system/--target-component)"""
+    traffic: TrafficHook | None
 
     gate: StampGate
     """which telemetry stamps are believed (companion/link/stamps.py); counts into ``stats``"""
+
+    def __init__(self, target: VehicleTarget | None, traffic: TrafficHook | None) -> None:
+        """What every backend keeps: the vehicle's state and clock, the stamp gate and the counts."""
+        self.target = target or VehicleTarget()
+        self.traffic = traffic
+        self.state = VehicleState()
+        self.clock = VehicleClock()
+        self.flavour = None
+        self.stats = Counter()
+        self.gate = StampGate(counts=self.stats)
+        self.telemetry_event = asyncio.Event()
+
+    def _sample(self, stamp_s: float, wall: float, store: Callable[..., bool], *values: object,
+                wraps: bool = False) -> bool:
+        """One telemetry sample, the one way in: its stamp through the gate (:meth:`_admit`), the
+        state set by ``store(*values, t_s, wall)`` at the admitted time (a ``VehicleState.set_*``:
+        it says whether the values were valid), then the clock and the control loop told
+        (:meth:`_observe`). False: not believed or not valid."""
+        a = self._admit(stamp_s, wall, wraps)
+        if a is None or not self._valid(store(*values, a.t_s, wall)):
+            return False
+        self._observe(a, wall)
+        return True
 
     def _admit(self, stamp_s: float, wall: float, wraps: bool = False) -> Admitted | None:
         """A sample's stamp through the gate (``wraps``: a ``time_boot_ms``, unwrapped there); on a

@@ -20,7 +20,6 @@ import contextlib
 import json
 import math
 import time
-from collections import Counter
 from typing import Any
 
 from mavsdk.asyncio import ComponentType, Configuration, ForwardingOption, Mavsdk
@@ -32,19 +31,16 @@ from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from mavsdk.plugins.mavlink_direct import MavlinkMessage
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from companion.link.clock import VehicleClock
 from companion.mavlink.boot_time import boot_ms
 from companion.mavlink.identity import SURVEY_S, VehicleTarget
 from companion.mavlink.setpoints import POSITION_TARGET_MASK
 from companion.mavlink.params import MAV_PARAM_TYPE_REAL32, PLANT_COMPID
-from companion.link.stamps import StampGate
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
-from companion.link.state import VehicleState
 
 from .base import ConnectWait, LinkError, TrafficHook, VehicleLink
 from .url import parse_endpoint
-from .flavour import PX4, Flavour
+from .flavour import PX4
 
 __all__ = ["MavsdkLink"]
 
@@ -79,18 +75,11 @@ class MavsdkLink(VehicleLink):
                  target: VehicleTarget | None = None) -> None:
         if signing_key is not None:
             raise LinkError("MAVLink signing needs --backend pymavlink: MAVSDK 4.1's Python API takes no signing key")
-        self.target = target or VehicleTarget()
+        super().__init__(target, traffic)
         if self.target.component_id not in (0, 1):
             raise LinkError("the MAVSDK backend flies an autopilot's component 1 only: drop --target-component or "
                             "use --backend pymavlink")
         self.url = url
-        self.traffic = traffic
-        self.state = VehicleState()
-        self.clock = VehicleClock()
-        self.flavour: Flavour | None = None
-        self.stats: Counter[str] = Counter()
-        self.gate = StampGate(counts=self.stats)
-        self.telemetry_event = asyncio.Event()
         self._sdk: Mavsdk | None = None
         self._tap: asyncio.DatagramTransport | None = None
         self._system: Any = None
@@ -212,9 +201,8 @@ class MavsdkLink(VehicleLink):
     async def _attitude(self) -> None:
         async for q in self.telemetry.subscribe_attitude_quaternion():
             now = self._seen()
-            a = self._admit(q.timestamp_us * 1e-6, now, wraps=True)  # from time_boot_ms
-            if a is not None and self._valid(self.state.set_attitude((q.w, q.x, q.y, q.z), None, a.t_s, now)):
-                self._observe(a, now)
+            self._sample(q.timestamp_us * 1e-6, now, self.state.set_attitude, (q.w, q.x, q.y, q.z), None,
+                         wraps=True)  # from time_boot_ms
 
     async def _rates(self) -> None:
         async for w in self.telemetry.subscribe_attitude_angular_velocity_body():
@@ -238,10 +226,7 @@ class MavsdkLink(VehicleLink):
         async for imu in self.telemetry.subscribe_imu():
             now = self._seen()
             a = imu.acceleration_frd
-            ad = self._admit(imu.timestamp_us * 1e-6, now)
-            if ad is not None and self._valid(self.state.set_imu((a.forward_m_s2, a.right_m_s2, a.down_m_s2),
-                                                                  ad.t_s, now)):
-                self._observe(ad, now)
+            self._sample(imu.timestamp_us * 1e-6, now, self.state.set_imu, (a.forward_m_s2, a.right_m_s2, a.down_m_s2))
 
     async def _mode(self) -> None:
         async for mode in self.telemetry.subscribe_flight_mode():

@@ -21,19 +21,16 @@ import contextlib
 import math
 import time
 from collections import Counter
-from typing import Any
+from typing import Any, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from companion.link.clock import VehicleClock
-from companion.link.stamps import StampGate
 from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
-from companion.link.state import VehicleState
 
 from .base import ConnectWait, LinkError, TrafficHook, VehicleLink
 from .url import Endpoint, parse_endpoint
-from .flavour import ARDUPILOT, PX4, Flavour, flavour_for
+from .flavour import ARDUPILOT, PX4, flavour_for
 from companion.mavlink import ftp
 from companion.mavlink.boot_time import boot_ms
 from companion.mavlink.commands import FORCE_ARM_DISARM, result_text
@@ -72,7 +69,7 @@ class PymavlinkLink(VehicleLink):
     def __init__(self, url: str, traffic: TrafficHook | None = None, sysid: int = 255, compid: int = 191,
                  command_timeout_s: float = 1.0, command_retries: int = 5, signing_key: bytes | None = None,
                  target: VehicleTarget | None = None) -> None:
-        self.target = target or VehicleTarget()
+        super().__init__(target, traffic)
         self.heard = AutopilotsHeard()
         """every autopilot identity heard: its addresses and sequence runs (two claimants, other systems)"""
         self._surveying = True
@@ -84,13 +81,6 @@ class PymavlinkLink(VehicleLink):
         self.direction = "in" if self.endpoint.kind == "udpin" else "out"
         self.address = (self.endpoint.host, self.endpoint.port) if self.endpoint.kind != "serial" else (
             self.endpoint.device, self.endpoint.baud)
-        self.traffic = traffic
-        self.state = VehicleState()
-        self.clock = VehicleClock()
-        self.flavour: Flavour | None = None
-        self.stats: Counter[str] = Counter()
-        self.gate = StampGate(counts=self.stats)
-        self.telemetry_event = asyncio.Event()
         self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
         self.parser = new_parser()
         self.signature_check: SignatureCheck | None = None
@@ -299,96 +289,111 @@ class PymavlinkLink(VehicleLink):
             self.stats["foreign_messages"] += 1
             return
         st.wall_last = wall
-        if kind == "ATTITUDE_QUATERNION":
-            a = self._admit(msg.time_boot_ms * 1e-3, wall, wraps=True)
-            if a is not None and self._valid(st.set_attitude(
-                    (msg.q1, msg.q2, msg.q3, msg.q4), (msg.rollspeed, msg.pitchspeed, msg.yawspeed), a.t_s, wall)):
-                self._observe(a, wall)
-        elif kind == "LOCAL_POSITION_NED":
-            a = self._admit(msg.time_boot_ms * 1e-3, wall, wraps=True)
-            if a is not None and self._valid(st.set_position(
-                    (msg.x, msg.y, msg.z), (msg.vx, msg.vy, msg.vz), a.t_s, wall)):
-                self._observe(a, wall)
-        elif kind == "ODOMETRY":
-            # only its reset counter, placed at the newest believed stamp: the position comes from
-            # LOCAL_POSITION_NED (one stream), and ODOMETRY's time_usec never feeds the clock (PX4's
-            # on the plant ran up to 0.7 s ahead of its time_boot_ms: the clock followed it, and
-            # the attitude and position read as stale, 0.5-0.8 s "outages" in most bench flights)
-            if msg.frame_id in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_FRD) and math.isfinite(st.t):
-                st.set_reset_counter(msg.reset_counter, st.t)
-        elif kind == "HIGHRES_IMU":
-            if msg.fields_updated & ACCEL_UPDATED == ACCEL_UPDATED:
-                self._highres_seen = True
-                a = self._admit(msg.time_usec * 1e-6, wall)
-                if a is not None and self._valid(st.set_imu((msg.xacc, msg.yacc, msg.zacc), a.t_s, wall)):
-                    self._observe(a, wall)
-        elif kind == "SCALED_IMU" and not self._highres_seen:
-            # an autopilot without HIGHRES_IMU: the first IMU's accelerometer, in milli-g
-            a = self._admit(msg.time_boot_ms * 1e-3, wall, wraps=True)
+        handler = _HANDLERS.get(kind)
+        if handler is not None:
+            handler(self, msg, wall, comp)
+
+    # --- the autopilot's messages, one handler each (_HANDLERS) ----------------------------
+
+    def _on_attitude(self, msg: Any, wall: float, comp: int) -> None:
+        self._sample(msg.time_boot_ms * 1e-3, wall, self.state.set_attitude, (msg.q1, msg.q2, msg.q3, msg.q4),
+                     (msg.rollspeed, msg.pitchspeed, msg.yawspeed), wraps=True)
+
+    def _on_position(self, msg: Any, wall: float, comp: int) -> None:
+        self._sample(msg.time_boot_ms * 1e-3, wall, self.state.set_position, (msg.x, msg.y, msg.z),
+                     (msg.vx, msg.vy, msg.vz), wraps=True)
+
+    def _on_odometry(self, msg: Any, wall: float, comp: int) -> None:
+        """Only its reset counter, placed at the newest believed stamp: the position comes from
+        LOCAL_POSITION_NED (one stream), and ODOMETRY's time_usec never feeds the clock (PX4's on
+        the plant runs up to 0.7 s ahead of its time_boot_ms)."""
+        st = self.state
+        if msg.frame_id in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_FRD) and math.isfinite(st.t):
+            st.set_reset_counter(msg.reset_counter, st.t)
+
+    def _on_highres_imu(self, msg: Any, wall: float, comp: int) -> None:
+        if msg.fields_updated & ACCEL_UPDATED == ACCEL_UPDATED:
+            self._highres_seen = True
+            self._sample(msg.time_usec * 1e-6, wall, self.state.set_imu, (msg.xacc, msg.yacc, msg.zacc))
+
+    def _on_scaled_imu(self, msg: Any, wall: float, comp: int) -> None:
+        """An autopilot without HIGHRES_IMU: the first IMU's accelerometer, in milli-g."""
+        if not self._highres_seen:
             g = 9.80665e-3
-            if a is not None and self._valid(st.set_imu((msg.xacc * g, msg.yacc * g, msg.zacc * g), a.t_s, wall)):
-                self._observe(a, wall)
-        elif kind == "EXTENDED_SYS_STATE":
-            st.landed_state = msg.landed_state
-        elif kind == "SYS_STATUS":
-            prearm = mavlink.MAV_SYS_STATUS_PREARM_CHECK
-            # ArduPilot sets the bit in "present" and "health"; PX4 v1.16 only ever in "health"
-            if msg.onboard_control_sensors_present & prearm or self.flavour is PX4:
-                st.armable = bool(msg.onboard_control_sensors_health & prearm)
-        elif kind == "STATUSTEXT":
-            st.add_text(msg.severity, msg.text)
-        elif kind == f"UNKNOWN_{MSG_ID_EVENT}":  # PX4 events: not in pymavlink's dialects
-            event = parse_event(_payload(msg))
-            if event is not None:
-                text = self.events.text(event) if self.events is not None else f"PX4 event 0x{event.id:08x}"
-                st.add_text(event.severity, text)
-                self.stats["events"] += 1
-        elif kind == "FILE_TRANSFER_PROTOCOL":
-            if msg.target_system in (0, self.mav.srcSystem) and self._ftp_reply is not None \
-                    and not self._ftp_reply.done():
-                self._ftp_reply.set_result(ftp.decode(bytes(msg.payload)))
-        elif kind == "COMMAND_ACK":
-            # only an answer addressed to us (0: broadcast, as some autopilots do) to a command in flight
-            us = (self.mav.srcSystem, self.mav.srcComponent)
-            if msg.target_system not in (0, us[0]) or msg.target_component not in (0, us[1]):
-                self.stats["acks_not_for_us"] += 1
-                return
-            fut = self._acks.get(msg.command)
-            if fut is None or fut.done():
-                self.stats["acks_unasked"] += 1
-                return
-            if msg.result != mavlink.MAV_RESULT_IN_PROGRESS:
-                fut.set_result(msg.result)
-        elif kind == "AUTOPILOT_VERSION":
-            v = msg.flight_sw_version
-            kinds = {0: "dev", 64: "alpha", 128: "beta", 192: "rc", 255: "official"}
-            custom = bytes(msg.flight_custom_version).hex()[:16]
-            self.autopilot_version = (f"{v >> 24 & 0xFF}.{v >> 16 & 0xFF}.{v >> 8 & 0xFF} "
-                                      f"{kinds.get(v & 0xFF, v & 0xFF)} ({custom})")
-        elif kind == "PARAM_ERROR":
-            # ArduPilot 4.7+ answers a read of a parameter it does not have, instead of silence
-            if msg.target_system in (0, self.mav.srcSystem):
-                name = param_name(msg.param_id)
-                fut, asked = self._params.get(name), self._param_asked.get(name, set())
-                if fut is not None and not fut.done() and comp in asked:
-                    asked.discard(comp)
-                    self.stats["param_errors"] += 1
-                    if not asked or (asked == {PLANT_COMPID} and not self._plant_heard):
-                        fut.set_result(math.nan)
-        elif kind == "PARAM_VALUE":
+            self._sample(msg.time_boot_ms * 1e-3, wall, self.state.set_imu,
+                         (msg.xacc * g, msg.yacc * g, msg.zacc * g), wraps=True)
+
+    def _on_extended_sys_state(self, msg: Any, wall: float, comp: int) -> None:
+        self.state.landed_state = msg.landed_state
+
+    def _on_sys_status(self, msg: Any, wall: float, comp: int) -> None:
+        prearm = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+        # ArduPilot sets the bit in "present" and "health"; PX4 v1.16 only ever in "health"
+        if msg.onboard_control_sensors_present & prearm or self.flavour is PX4:
+            self.state.armable = bool(msg.onboard_control_sensors_health & prearm)
+
+    def _on_statustext(self, msg: Any, wall: float, comp: int) -> None:
+        self.state.add_text(msg.severity, msg.text)
+
+    def _on_event(self, msg: Any, wall: float, comp: int) -> None:
+        """PX4's events (not in pymavlink's dialects): their text from the catalogue fetched at connection."""
+        event = parse_event(_payload(msg))
+        if event is not None:
+            text = self.events.text(event) if self.events is not None else f"PX4 event 0x{event.id:08x}"
+            self.state.add_text(event.severity, text)
+            self.stats["events"] += 1
+
+    def _on_ftp(self, msg: Any, wall: float, comp: int) -> None:
+        if msg.target_system in (0, self.mav.srcSystem) and self._ftp_reply is not None \
+                and not self._ftp_reply.done():
+            self._ftp_reply.set_result(ftp.decode(bytes(msg.payload)))
+
+    def _on_command_ack(self, msg: Any, wall: float, comp: int) -> None:
+        """Only an answer addressed to us (0: broadcast, as some autopilots do) to a command in flight."""
+        us = (self.mav.srcSystem, self.mav.srcComponent)
+        if msg.target_system not in (0, us[0]) or msg.target_component not in (0, us[1]):
+            self.stats["acks_not_for_us"] += 1
+            return
+        fut = self._acks.get(msg.command)
+        if fut is None or fut.done():
+            self.stats["acks_unasked"] += 1
+            return
+        if msg.result != mavlink.MAV_RESULT_IN_PROGRESS:
+            fut.set_result(msg.result)
+
+    def _on_autopilot_version(self, msg: Any, wall: float, comp: int) -> None:
+        v = msg.flight_sw_version
+        kinds = {0: "dev", 64: "alpha", 128: "beta", 192: "rc", 255: "official"}
+        custom = bytes(msg.flight_custom_version).hex()[:16]
+        self.autopilot_version = (f"{v >> 24 & 0xFF}.{v >> 16 & 0xFF}.{v >> 8 & 0xFF} "
+                                  f"{kinds.get(v & 0xFF, v & 0xFF)} ({custom})")
+
+    def _on_param_error(self, msg: Any, wall: float, comp: int) -> None:
+        """ArduPilot 4.7+ answers a read of a parameter it does not have, instead of silence."""
+        if msg.target_system in (0, self.mav.srcSystem):
             name = param_name(msg.param_id)
-            if name not in st.params and len(st.params) >= MAX_PARAMS:
-                self.stats["params_dropped"] += 1  # a vehicle, or someone posing as one, inventing names
-                return
-            value = decode_value(msg.param_value, msg.param_type, bytewise=self.flavour is PX4)
-            st.params[name] = value
-            if not self.params_complete and 0 < msg.param_count <= len(st.params):
-                self.params_complete = True
-            self._param_types[name] = msg.param_type
-            self._param_owner[name] = st.compid
-            fut = self._params.get(name)
-            if fut is not None and not fut.done():
-                fut.set_result(value)
+            fut, asked = self._params.get(name), self._param_asked.get(name, set())
+            if fut is not None and not fut.done() and comp in asked:
+                asked.discard(comp)
+                self.stats["param_errors"] += 1
+                if not asked or (asked == {PLANT_COMPID} and not self._plant_heard):
+                    fut.set_result(math.nan)
+
+    def _on_param_value(self, msg: Any, wall: float, comp: int) -> None:
+        st = self.state
+        name = param_name(msg.param_id)
+        if name not in st.params and len(st.params) >= MAX_PARAMS:
+            self.stats["params_dropped"] += 1  # a vehicle, or someone posing as one, inventing names
+            return
+        value = decode_value(msg.param_value, msg.param_type, bytewise=self.flavour is PX4)
+        st.params[name] = value
+        if not self.params_complete and 0 < msg.param_count <= len(st.params):
+            self.params_complete = True
+        self._param_types[name] = msg.param_type
+        self._param_owner[name] = st.compid
+        fut = self._params.get(name)
+        if fut is not None and not fut.done():
+            fut.set_result(value)
 
     def _plant_message(self, kind: str, msg: Any) -> None:
         """The plant's component: its SIM_* parameters (REAL32, never a name the autopilot has) and
@@ -770,3 +775,22 @@ def nothing_heard(e: Endpoint, after_s: float) -> str:
         return f"connected to {e.url}, but nothing arrived in {after_s:g} s: is that a MAVLink port?"
     return (f"nothing arrived on {e.device} in {after_s:g} s: wired (TX to RX), the same baud as the autopilot's "
             f"port ({e.baud}), and MAVLink enabled on it (PX4 MAV_1_CONFIG, ArduPilot SERIAL2_PROTOCOL=2)?")
+
+
+_HANDLERS: dict[str, Callable[[PymavlinkLink, Any, float, int], None]] = {
+    "ATTITUDE_QUATERNION": PymavlinkLink._on_attitude,
+    "LOCAL_POSITION_NED": PymavlinkLink._on_position,
+    "ODOMETRY": PymavlinkLink._on_odometry,
+    "HIGHRES_IMU": PymavlinkLink._on_highres_imu,
+    "SCALED_IMU": PymavlinkLink._on_scaled_imu,
+    "EXTENDED_SYS_STATE": PymavlinkLink._on_extended_sys_state,
+    "SYS_STATUS": PymavlinkLink._on_sys_status,
+    "STATUSTEXT": PymavlinkLink._on_statustext,
+    f"UNKNOWN_{MSG_ID_EVENT}": PymavlinkLink._on_event,
+    "FILE_TRANSFER_PROTOCOL": PymavlinkLink._on_ftp,
+    "COMMAND_ACK": PymavlinkLink._on_command_ack,
+    "AUTOPILOT_VERSION": PymavlinkLink._on_autopilot_version,
+    "PARAM_ERROR": PymavlinkLink._on_param_error,
+    "PARAM_VALUE": PymavlinkLink._on_param_value,
+}
+"""what the chosen autopilot's own component says, by message name; anything else is ignored"""
