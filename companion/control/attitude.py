@@ -11,7 +11,7 @@ robust term ``tau_1`` of (23)::
 INDI (incremental nonlinear dynamic inversion, Smeur, Chu & de Croon 2016) is the state of the
 art the paper's approach is compared with in practice; it shares the error and the desired
 angular acceleration ``nu`` of (13), and replaces the model by the measured angular
-acceleration (:class:`~.observers.IncrementalTorque`).
+acceleration (:func:`~.observers.incremental_step`).
 
 Error function ``H = eps~^T eps~`` gives the feedback vector ``e = 2 eta~ eps~``, stable at both
 ``eta~ = +-1``: ``q`` and ``-q`` give the same torque, so there is no unwinding and no sign logic.
@@ -28,6 +28,7 @@ from .names import controllers_for
 from .observers import (
     IncrementalConst,
     IncrementalState,
+    Stepper,
     TorqueObserverState,
     incremental_const,
     incremental_init,
@@ -281,7 +282,7 @@ def attitude_disturbance_estimate(c: AttitudeConst, st: AttitudeState) -> Vec3:
 
 
 @dataclass
-class AttitudeController:
+class AttitudeController(Stepper[AttitudeConst]):
     """PD, PD+DO, ISM+DO or INDI attitude tracking, chosen by ``kind`` (one of ATTITUDE_CONTROLLERS).
 
     Call :meth:`update` once per attitude step with the latest gyro rate and the torque that
@@ -294,16 +295,12 @@ class AttitudeController:
     inertia_kg_m2: Vec3
     """J0, the controller's nominal inertia"""
     state: AttitudeState = field(default_factory=attitude_init, repr=False)
-    _const: AttitudeConst | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         self.const(1e-3)  # checks the kind
 
-    def const(self, dt_s: float) -> AttitudeConst:
-        c = self._const
-        if c is None or c.dt_s != dt_s:
-            c = self._const = attitude_const(self.kind, self.gains, self.inertia_kg_m2, dt_s)
-        return c
+    def _build(self, dt_s: float) -> AttitudeConst:
+        return attitude_const(self.kind, self.gains, self.inertia_kg_m2, dt_s)
 
     @property
     def z(self) -> Vec3:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Generic, NamedTuple, TypeVar
 
 from .jit import jitable
 from .vector import (
@@ -32,7 +32,7 @@ from .vector import (
 )
 
 __all__ = [
-    "TorqueObserver", "ForceObserver", "MomentumObserver", "MatchingFilter", "IncrementalTorque", "lowpass_step",
+    "Stepper", "ForceObserver", "MomentumObserver", "MatchingFilter", "lowpass_step",
     "TorqueObserverState", "torque_observer_init", "torque_observer_step",
     "MATCHING_CAPACITY", "MatchingConst", "MatchingState", "matching_const", "matching_init", "matching_step",
     "ForceObserverConst", "ForceObserverState", "force_observer_const", "force_observer_init", "force_observer_step",
@@ -40,6 +40,27 @@ __all__ = [
     "IncrementalConst", "IncrementalState", "incremental_const", "incremental_init", "incremental_step",
     "lowpass_chain",
 ]
+
+C = TypeVar("C")
+
+
+class Stepper(Generic[C]):
+    """What every law's wrapper shares: its constants (a ``*_const`` record: gains turned into
+    per-step coefficients) built once per step length, by :meth:`_build`, and rebuilt only when
+    the step length changes. The law itself is a pure ``*_step(const, state, ...)``; a wrapper
+    holds its state."""
+
+    _const: C | None = None
+    _dt: float = -1.0
+
+    def _build(self, dt_s: float) -> C:
+        raise NotImplementedError
+
+    def const(self, dt_s: float) -> C:
+        if self._const is None or self._dt != dt_s:
+            self._const, self._dt = self._build(dt_s), dt_s
+        return self._const
+
 
 Stages4 = tuple[Vec3, Vec3, Vec3, Vec3]
 ZERO_STAGES: Stages4 = (ZERO3, ZERO3, ZERO3, ZERO3)
@@ -80,21 +101,6 @@ def _alphas(bandwidth_rad_s: Vec3, dt_s: float) -> Vec3:
     return (lowpass_alpha(b[0], dt_s), lowpass_alpha(b[1], dt_s), lowpass_alpha(b[2], dt_s))
 
 
-class _Alpha:
-    """Per-axis filter gains for a step length, recomputed only when ``dt`` changes."""
-
-    def __init__(self, bandwidth_rad_s: Vec3) -> None:
-        self.bandwidth = bandwidth_rad_s
-        self._dt = -1.0
-        self._alpha: Vec3 = ZERO3
-
-    def __call__(self, dt_s: float) -> Vec3:
-        if dt_s != self._dt:
-            self._alpha = _alphas(self.bandwidth, dt_s)
-            self._dt = dt_s
-        return self._alpha
-
-
 # --- torque observer (15), (19) ---------------------------------------------------------------
 
 
@@ -133,48 +139,6 @@ def torque_observer_step(st: TorqueObserverState, inertia_kg_m2: Vec3, alpha: Ve
     h_meas = sub(torque_measure(inertia_kg_m2, omega_rad_s, st.omega_prev, torque_applied_prev_nm, dt_s),
                  model_torque_nm)
     return TorqueObserverState(lowpass_step(st.estimate_nm, h_meas, alpha), omega_rad_s, True)
-
-
-@dataclass
-class TorqueObserver:
-    """Torque disturbance estimate ``h_tau_hat`` [N m] from finite-differenced gyro rates.
-
-    ``h_meas,k = J0 omega_dot_k - tau_applied,k-1 + omega_k x (J0 omega_k)``  (15)
-    with ``omega_dot_k = (omega_k - omega_k-1) / dt``: the backward difference is the mean
-    acceleration over the step in which ``tau_applied,k-1`` acted. A wrapper around
-    :func:`torque_observer_step`.
-    """
-
-    inertia_kg_m2: Vec3
-    bandwidth_rad_s: Vec3
-    state: TorqueObserverState = field(default_factory=torque_observer_init, repr=False)
-    _alpha: _Alpha = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        self._alpha = _Alpha(self.bandwidth_rad_s)
-
-    @property
-    def estimate_nm(self) -> Vec3:
-        return self.state.estimate_nm
-
-    def reset(self) -> None:
-        self.state = torque_observer_init()
-
-    def measure(self, omega_rad_s: Vec3, torque_applied_prev_nm: Vec3, dt_s: float) -> Vec3 | None:
-        """The raw measurement of (15); ``None`` on the first call (no rate difference yet)."""
-        st = self.state
-        self.state = TorqueObserverState(st.estimate_nm, omega_rad_s, True)
-        if not st.primed:
-            return None
-        return torque_measure(self.inertia_kg_m2, omega_rad_s, st.omega_prev, torque_applied_prev_nm, dt_s)
-
-    def update(
-        self, omega_rad_s: Vec3, torque_applied_prev_nm: Vec3, dt_s: float, model_torque_nm: Vec3 = ZERO3
-    ) -> Vec3:
-        """Advance one step; ``model_torque_nm`` is a known torque (e.g. drag) to leave out."""
-        self.state = torque_observer_step(self.state, self.inertia_kg_m2, self._alpha(dt_s), omega_rad_s,
-                                          torque_applied_prev_nm, dt_s, model_torque_nm)
-        return self.state.estimate_nm
 
 
 # --- the matching filter: the acceleration's delay and low-pass, applied to the force -------------
@@ -237,7 +201,7 @@ def matching_step(c: MatchingConst, st: MatchingState, u: Vec3) -> tuple[Matchin
 
 
 @dataclass
-class MatchingFilter:
+class MatchingFilter(Stepper[MatchingConst]):
     """A pure delay and ``order`` equal first-order low-passes at ``cutoff_hz`` (0: none).
 
     Model of how the acceleration measurement was obtained (e.g. 60 Hz positions, 10 ms late,
@@ -250,19 +214,13 @@ class MatchingFilter:
     cutoff_hz: float = 0.0
     order: int = 2
     state: MatchingState = field(default_factory=matching_init, repr=False)
-    _const: MatchingConst | None = field(default=None, repr=False)
-    _dt: float = field(default=-1.0, repr=False)
 
     @property
     def active(self) -> bool:
         return self.delay_s > 0.0 or self.cutoff_hz > 0.0
 
-    def const(self, dt_s: float) -> MatchingConst:
-        c = self._const
-        if c is None or self._dt != dt_s:
-            c = self._const = matching_const(self.delay_s, self.cutoff_hz, self.order, dt_s)
-            self._dt = dt_s
-        return c
+    def _build(self, dt_s: float) -> MatchingConst:
+        return matching_const(self.delay_s, self.cutoff_hz, self.order, dt_s)
 
     def reset(self) -> None:
         self.state = matching_init()
@@ -319,7 +277,7 @@ def force_observer_step(c: ForceObserverConst, st: ForceObserverState, specific_
 
 
 @dataclass
-class ForceObserver:
+class ForceObserver(Stepper[ForceObserverConst]):
     """Force disturbance estimate ``h_f_hat`` [N] in NED (30).
 
     ``h_meas = m0 (r_ddot - g e3) - f``, where ``r_ddot - g e3`` is the accelerometer's
@@ -336,16 +294,9 @@ class ForceObserver:
     order: int = 1
     """equal first-order stages of the low-pass (1: (19); 2: INDI's second-order filter)"""
     state: ForceObserverState = field(default_factory=force_observer_init, repr=False)
-    _const: ForceObserverConst | None = field(default=None, repr=False)
-    _dt: float = field(default=-1.0, repr=False)
 
-    def const(self, dt_s: float) -> ForceObserverConst:
-        c = self._const
-        if c is None or self._dt != dt_s:
-            c = self._const = force_observer_const(self.mass_kg, self.bandwidth_rad_s, self.order,
-                                                   self.matching.const(dt_s), dt_s)
-            self._dt = dt_s
-        return c
+    def _build(self, dt_s: float) -> ForceObserverConst:
+        return force_observer_const(self.mass_kg, self.bandwidth_rad_s, self.order, self.matching.const(dt_s), dt_s)
 
     @property
     def estimate_n(self) -> Vec3:
@@ -415,7 +366,7 @@ def momentum_step(c: MomentumConst, st: MomentumState, vel_m_s: Vec3, force_n: V
 
 
 @dataclass
-class MomentumObserver:
+class MomentumObserver(Stepper[MomentumConst]):
     """Force disturbance estimate [N] from a velocity, without differentiating it.
 
     ``h_hat = Gamma (m0 v - p_hat)``, ``p_hat' = f + m0 a_known + h_hat``, so that
@@ -436,7 +387,7 @@ class MomentumObserver:
     def estimate_n(self) -> Vec3:
         return self.state.estimate_n
 
-    def const(self, dt_s: float) -> MomentumConst:
+    def _build(self, dt_s: float) -> MomentumConst:
         return MomentumConst(self.mass_kg, self.bandwidth_rad_s, self.matching.const(dt_s))
 
     def reset(self) -> None:
@@ -497,43 +448,3 @@ def incremental_step(c: IncrementalConst, st: IncrementalState, omega_rad_s: Vec
     s2 = lowpass_step(s2, actuator, alpha)
     s3 = lowpass_step(s3, s2, alpha)
     return IncrementalState(sub(s1, s3), omega_rad_s, True, actuator, (s0, s1, s2, s3))
-
-
-@dataclass
-class IncrementalTorque:
-    """What incremental NDI subtracts (Smeur, Chu & de Croon 2016): ``J0 w'_f - tau_f`` [N m].
-
-    INDI commands ``tau = tau_f + J0 (nu - w'_f)``: the torque the rotors produce now, plus
-    the inertia times the missing angular acceleration. ``w'_f`` is the finite-differenced gyro
-    and ``tau_f`` the applied torque through the rotors' first-order lag (the actuator model),
-    both through the same second-order low-pass (two equal first-order stages): filtered alike,
-    their difference holds no filter lag of the control's own action. No model of the body is
-    used: gyroscopic torque, inertia error and disturbances all arrive in ``w'``. A wrapper
-    around :func:`incremental_step`.
-    """
-
-    inertia_kg_m2: Vec3
-    filter_rad_s: float
-    actuator_time_constant_s: float
-    state: IncrementalState = field(default_factory=incremental_init, repr=False)
-    _const: IncrementalConst | None = field(default=None, repr=False)
-    _dt: float = field(default=-1.0, repr=False)
-
-    @property
-    def estimate_nm(self) -> Vec3:
-        return self.state.estimate_nm
-
-    def const(self, dt_s: float) -> IncrementalConst:
-        c = self._const
-        if c is None or self._dt != dt_s:
-            c = self._const = incremental_const(self.inertia_kg_m2, self.filter_rad_s,
-                                                self.actuator_time_constant_s, dt_s)
-            self._dt = dt_s
-        return c
-
-    def reset(self) -> None:
-        self.state = incremental_init()
-
-    def update(self, omega_rad_s: Vec3, torque_applied_prev_nm: Vec3, dt_s: float) -> Vec3:
-        self.state = incremental_step(self.const(dt_s), self.state, omega_rad_s, torque_applied_prev_nm, dt_s)
-        return self.state.estimate_nm

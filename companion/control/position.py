@@ -51,6 +51,7 @@ from .observers import (
     ForceObserverState,
     MomentumConst,
     MomentumState,
+    Stepper,
     force_observer_const,
     force_observer_init,
     force_observer_step,
@@ -301,7 +302,7 @@ def _sliding_term(c: PositionConst, z: Vec3, started: bool, pos_err_m: Vec3,
 
 
 @dataclass
-class PositionController:
+class PositionController(Stepper[PositionConst]):
     """One of POSITION_CONTROLLERS; :meth:`update` returns the force f [N, NED].
 
     ``specific_force_ned`` is ``r_dd - g e3`` (accelerometer rotated to NED, or differentiated
@@ -315,16 +316,12 @@ class PositionController:
     mass_kg: Real
     gravity_m_s2: float = 9.81
     state: PositionState = field(default_factory=position_init, repr=False)
-    _const: PositionConst | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         self.const(0.01)  # checks the kind and the gains
 
-    def const(self, dt_s: float) -> PositionConst:
-        c = self._const
-        if c is None or c.dt_s != dt_s:
-            c = self._const = position_const(self.kind, self.gains, self.mass_kg, self.gravity_m_s2, dt_s)
-        return c
+    def _build(self, dt_s: float) -> PositionConst:
+        return position_const(self.kind, self.gains, self.mass_kg, self.gravity_m_s2, dt_s)
 
     @property
     def xi(self) -> Vec3:
