@@ -13,11 +13,36 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
+from companion.control.jit import depends_on, jitable
 from companion.control.vector import ZERO3, Real, Vec3
 
-__all__ = ["PROFILE_KINDS", "Profile", "evaluate"]
+depends_on(__file__)  # the compiled kernel (kernel.py) calls profile_factor
+
+__all__ = ["PROFILE_KINDS", "Profile", "evaluate", "profile_factor"]
 
 PROFILE_KINDS = ("constant", "step", "chirp")
+"""in this order: a profile's kind is its index here where profiles are arrays (sitl/plant/kernel.py)"""
+CONSTANT, STEP = 0, 1
+
+
+@jitable
+def profile_factor(kind: int, start_s: float, stop_s: float, rise_s: float, f0_hz: float, f1_hz: float,
+                   end_scale: float, t_s: float) -> float:
+    """The scalar multiplying a profile's value at ``t_s``: 1 (constant); 0 outside
+    ``[start_s, stop_s)``; a step rising linearly over ``rise_s``; a chirp whose frequency sweeps
+    linearly from ``f0_hz`` to ``f1_hz`` and whose amplitude goes from 1 to ``end_scale``."""
+    if kind == CONSTANT:
+        return 1.0
+    if t_s < start_s or t_s >= stop_s:
+        return 0.0
+    tau = t_s - start_s
+    if kind == STEP:
+        return min(1.0, tau / rise_s) if rise_s > 0.0 else 1.0
+    span = stop_s - start_s
+    sweep = (f1_hz - f0_hz) / span
+    phase = 2.0 * math.pi * (f0_hz * tau + 0.5 * sweep * tau * tau)
+    amplitude = 1.0 + (end_scale - 1.0) * tau / span
+    return amplitude * math.sin(phase)
 
 
 @dataclass(frozen=True)
@@ -40,19 +65,9 @@ class Profile:
             raise ValueError("a chirp needs a finite stop_s (its sweep ends there)")
 
     def factor(self, t_s: float) -> float:
-        """The scalar multiplying ``value`` at ``t_s``."""
-        if self.kind == "constant":
-            return 1.0
-        if t_s < self.start_s or t_s >= self.stop_s:
-            return 0.0
-        tau = t_s - self.start_s
-        if self.kind == "step":
-            return min(1.0, tau / self.rise_s) if self.rise_s > 0.0 else 1.0
-        span = self.stop_s - self.start_s
-        sweep = (self.f1_hz - self.f0_hz) / span
-        phase = 2.0 * math.pi * (self.f0_hz * tau + 0.5 * sweep * tau * tau)
-        amplitude = 1.0 + (self.end_scale - 1.0) * tau / span
-        return amplitude * math.sin(phase)
+        """The scalar multiplying ``value`` at ``t_s`` (:func:`profile_factor`)."""
+        return profile_factor(PROFILE_KINDS.index(self.kind), self.start_s, self.stop_s, self.rise_s, self.f0_hz,
+                              self.f1_hz, self.end_scale, t_s)
 
 
 def evaluate(profiles: Sequence[Profile], t_s: float) -> Vec3:

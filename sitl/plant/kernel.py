@@ -51,6 +51,7 @@ from companion.control.vector import ZERO3, Vec3, lowpass_alpha
 from . import rng
 from .body import Forces, PlantConst, RigidBody, plant_const, plant_step
 from .codec import codec
+from .disturbances import PROFILE_KINDS, profile_factor
 from .onboard import command_level, estimator_correct
 from .sensors import MocapSample, differentiated, imu_reading, tracked_pose
 from .wind import dryden_advance, dryden_gust, wind_ned
@@ -262,9 +263,6 @@ def wind_step(c: WindConst, st: WindState, k: int) -> tuple[WindState, Vec3]:
 
 # --- external forces and torques ----------------------------------------------------------------------
 
-PROFILE_KINDS = ("constant", "step", "chirp")
-
-
 def profiles_array(profiles: object) -> NDArray[np.float64]:
     """Profiles (:class:`sitl.plant.disturbances.Profile`) as rows ``kind, value (3), start, stop,
     rise, f0, f1, end_scale`` (at least one row, all zero for none: a step that never starts)."""
@@ -275,33 +273,14 @@ def profiles_array(profiles: object) -> NDArray[np.float64]:
 
 
 @jitable
-def profile_factor(row: NDArray[np.float64], t_s: float) -> float:
-    """The scalar multiplying a profile's value at ``t_s`` (see :class:`sitl.plant.disturbances.Profile`)."""
-    kind, start, stop = int(row[0]), row[4], row[5]
-    if kind == 0:
-        return 1.0
-    if t_s < start or t_s >= stop:
-        return 0.0
-    tau = t_s - start
-    if kind == 1:
-        rise = row[6]
-        return min(1.0, tau / rise) if rise > 0.0 else 1.0
-    f0, f1, end_scale = row[7], row[8], row[9]
-    span = stop - start
-    sweep = (f1 - f0) / span
-    phase = 2.0 * math.pi * (f0 * tau + 0.5 * sweep * tau * tau)
-    amplitude = 1.0 + (end_scale - 1.0) * tau / span
-    return amplitude * math.sin(phase)
-
-
-@jitable
 def profiles_at(rows: NDArray[np.float64], t_s: float) -> Vec3:
     """Sum of the profiles at ``t_s``."""
     x = 0.0
     y = 0.0
     z = 0.0
     for i in range(rows.shape[0]):
-        k = profile_factor(rows[i], t_s)
+        r = rows[i]
+        k = profile_factor(int(r[0]), r[4], r[5], r[6], r[7], r[8], r[9], t_s)
         if k != 0.0:
             x = x + k * rows[i, 1]
             y = y + k * rows[i, 2]
