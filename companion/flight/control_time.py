@@ -1,9 +1,10 @@
 """The controller's time: vehicle time, but never further ahead of the newest telemetry than a
 small lead.
 
-The control loop wakes on the clock line (:class:`~companion.link.clock.VehicleClock`), which
-extrapolates the vehicle's clock from past packets. Integrating the controller on that line alone
-assumes the vehicle's clock kept running. A simulated vehicle may stop it (a stalled host, or
+The control loop ticks on a grid led by the telemetry's stamps (:class:`~.pacing.TickGrid`); when
+samples are missing it falls back to the clock line (:class:`~companion.link.clock.VehicleClock`),
+which extrapolates the vehicle's clock from past packets. Integrating the controller on that line
+alone would assume the vehicle's clock kept running. A simulated vehicle may stop it (a stalled host, or
 ``sitl --wait-for-setpoints`` waiting for us); a real one never does, but its telemetry can stop
 arriving. Either way, the reference and the integrators would then advance through time the
 vehicle has not been seen to live: at 2 m/s, each 50 ms of such time puts the reference 10 cm
