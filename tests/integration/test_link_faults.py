@@ -126,31 +126,28 @@ def _detected_after(out: str) -> float:
     return float(m.group(1)) if m else math.nan
 
 
-def test_waypoints_and_hover45_under_loss_and_delay(sitl, relay, companion, record_property):
-    """Both missions in real time (the delay is wall time), one after the other (six processes at
-    once would measure this 2-core host's contention, not the link), each through its own relay:
-    10% loss and 20 +- 10 ms delay in each direction, seeded. Loss counts are binomial (p = 0.1;
-    +-5 sd accepted), so the impairment demonstrably happened. The vehicle waits for setpoints more
-    than 0.1 s late (a stalled process on this host; the impairment alone never delays the 100 Hz
-    stream that long: 30 ms of jitter, and 10 losses in a row at p = 1e-10)."""
-    results = {}
-    for name, seed in (("waypoints", "1"), ("hover45", "2")):
-        s = sitl(*PAPER, "--wait-for-setpoints", "0.1", speedup=1.0)
-        r = relay(s.url, *IMPAIRED, "--seed", seed)
-        c = companion(f"missions/{name}.toml", r.url, *PAPER_OUTPUT)
-        code, out = c.finish(timeout=180)
-        assert code == 0, out
-        report = r.stop()
-        for direction in ("up", "down"):
-            n, lost = report[direction]["received"], report[direction]["lost"]
-            assert abs(lost - 0.1 * n) < 5 * math.sqrt(n * 0.09), (direction, report)
-        summary = segments(c.flight_dir())["_summary"]
-        assert summary["setpoints_rejected"] == 0
-        results[name] = (c.flight_dir(), summary)
-        assert not s.stop()["armed"]
-        record_property(f"{name}_dropped", {d: report[d]["lost"] for d in ("up", "down")})
-    record_property("waypoints", _check_waypoints(results["waypoints"][0]))
-    record_property("hover45", _check_hover45(results["hover45"][0]))
+@pytest.mark.parametrize("name, seed, check", [("waypoints", "1", _check_waypoints), ("hover45", "2", _check_hover45)])
+def test_a_mission_under_loss_and_delay(sitl, relay, companion, record_property, name, seed, check):
+    """Each mission in real time (the delay is wall time) through its own relay: 10% loss and
+    20 +- 10 ms delay in each direction, seeded. Loss counts are binomial (p = 0.1; +-5 sd
+    accepted), so the impairment demonstrably happened. The vehicle waits for setpoints more than
+    0.1 s late (a stalled process on this host; the impairment alone never delays the 100 Hz
+    stream that long: 30 ms of jitter, and 10 losses in a row at p = 1e-10). The two missions are
+    two tests: the suite's workers fly them side by side with others, as every flight here is."""
+    s = sitl(*PAPER, "--wait-for-setpoints", "0.1", speedup=1.0)
+    r = relay(s.url, *IMPAIRED, "--seed", seed)
+    c = companion(f"missions/{name}.toml", r.url, *PAPER_OUTPUT)
+    code, out = c.finish(timeout=180)
+    assert code == 0, out
+    report = r.stop()
+    for direction in ("up", "down"):
+        n, lost = report[direction]["received"], report[direction]["lost"]
+        assert abs(lost - 0.1 * n) < 5 * math.sqrt(n * 0.09), (direction, report)
+    summary = segments(c.flight_dir())["_summary"]
+    assert summary["setpoints_rejected"] == 0
+    assert not s.stop()["armed"]
+    record_property("dropped", {d: report[d]["lost"] for d in ("up", "down")})
+    record_property(name, check(c.flight_dir()))
 
 
 def _flight_with_outage(tmp_path, sitl, relay, companion, client, outage_wall_s: float, record):
