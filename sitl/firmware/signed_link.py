@@ -18,7 +18,7 @@ from pymavlink.dialects.v20 import all as every_dialect
 
 from companion.mavlink.signing import VEHICLE_ACCEPTS_UNSIGNED, FrameSigner, SignatureCheck
 
-from .relay import Frame, frames
+from .frames import Frame, frames
 
 __all__ = ["SignedLink"]
 

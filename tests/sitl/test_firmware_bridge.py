@@ -20,7 +20,7 @@ from sitl.firmware.ardupilot import MAGIC_16, servo_packet, state_line
 from sitl.firmware.lockstep import CompanionGate
 from sitl.firmware.plant_component import PlantComponent
 from sitl.firmware.px4_wire import ACCEL, BARO, GYRO, MAG, Px4Wire
-from sitl.firmware.relay import CLOCKS_MS, CLOCKS_US, SETPOINTS, frames, stamps
+from sitl.firmware.frames import CLOCKS_MS, CLOCKS_US, SETPOINTS, frames, stamps
 from sitl.firmware.world import FirmwareWorld
 from sitl.plant.dynamics import Plant
 from sitl.plant.geo import GeoOrigin
@@ -249,7 +249,7 @@ def test_hover_outputs_hold_the_plant_up() -> None:
 
 
 def test_the_relay_hands_what_is_addressed_to_the_plant_to_it_and_passes_the_rest() -> None:
-    from sitl.firmware.relay import for_component
+    from sitl.firmware.frames import for_component
 
     to_plant = GCS.param_set_encode(1, PLANT_COMPID, b"SIM_FORCE_X", 2.0, mavlink.MAV_PARAM_TYPE_REAL32).pack(GCS)
     read_plant = GCS.param_request_read_encode(1, PLANT_COMPID, b"SIM_WIND_N", -1).pack(GCS)
@@ -264,7 +264,7 @@ def test_the_relay_hands_what_is_addressed_to_the_plant_to_it_and_passes_the_res
 
 def test_the_world_waits_only_while_the_vehicle_is_armed() -> None:
     """PX4 returns to OFFBOARD after a disarm; a disarmed vehicle is never flown by a stream."""
-    from sitl.firmware.relay import armed
+    from sitl.firmware.frames import armed
 
     gate = CompanionGate(lead_s=0.025)
     gate.setpoint(10.0)
