@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from companion.cli import main
-from companion.config import ConfigError
 from companion.mission import ENVELOPE, load_mission
 from companion.mission.envelope import envelope_markdown
+from helpers.missions import refusal
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -82,14 +82,6 @@ def _default(table: str):
     return obj
 
 
-def refused(tmp_path, text):
-    p = tmp_path / "m.toml"
-    p.write_text(text)
-    with pytest.raises(ConfigError) as e:
-        load_mission(p)
-    return e.value
-
-
 def test_the_base_mission_is_inside(tmp_path):
     p = tmp_path / "m.toml"
     p.write_text(BASE)
@@ -104,7 +96,7 @@ def test_every_row_refuses_just_outside(tmp_path, key):
         if row.zero_means and value <= 0:
             value = row.lo / 2 if row.lo > 0 else -1.0  # 0 itself means something
         text, key_path, line = with_value(key, value)
-        e = refused(tmp_path, text)
+        e = refusal(tmp_path, text)
         assert e.key == key_path and e.line == line, (key, value, str(e))
         assert "expected" in e.reason and row.unit in e.reason, str(e)
 
@@ -163,7 +155,7 @@ def test_failsafes_cannot_be_switched_off_or_made_absurd(tmp_path, capsys, table
      ["at most 4 m/s", "cannot brake"]),
 ])
 def test_rules_across_keys(tmp_path, setting, key, words):
-    e = refused(tmp_path, BASE.replace('name = "m"\n', f'name = "m"\n\n{setting}\n'))
+    e = refusal(tmp_path, BASE.replace('name = "m"\n', f'name = "m"\n\n{setting}\n'))
     assert e.key == key and e.line is not None and e.line >= 4, str(e)
     for w in words:
         assert w in e.reason, str(e)
@@ -177,14 +169,14 @@ def test_thrust_zero_means_ask_the_vehicle(tmp_path):
 
 def test_non_finite_numbers(tmp_path):
     for bad in ("nan", "inf", "-inf"):
-        e = refused(tmp_path, BASE.replace("duration_s = 1", f"duration_s = {bad}"))
+        e = refusal(tmp_path, BASE.replace("duration_s = 1", f"duration_s = {bad}"))
         assert e.key == "steps[3].duration_s" and "finite" in e.reason
 
 
 def test_step_order(tmp_path):
-    e = refused(tmp_path, BASE.replace('[[steps]]\naction = "land"\n', ""))
+    e = refusal(tmp_path, BASE.replace('[[steps]]\naction = "land"\n', ""))
     assert e.key == "steps[4]" and "ends in the air" in e.reason
-    e = refused(tmp_path, BASE.replace('action = "offboard"', 'action = "takeoff"\naltitude_m = 2'))
+    e = refusal(tmp_path, BASE.replace('action = "offboard"', 'action = "takeoff"\naltitude_m = 2'))
     assert e.key == "steps[2]" and "already airborne" in e.reason
 
 
@@ -201,6 +193,6 @@ def test_degrees_read_as_degrees():
 
 def test_a_goto_speed_the_reference_cannot_brake_from(tmp_path):
     text = BASE.replace("\nspeed_m_s = 1\n", "\nspeed_m_s = 3\n")  # the goto's
-    e = refused(tmp_path, text.replace('name = "m"\n', 'name = "m"\n\n[trajectory]\nmax_accel_m_s2 = 1\n'
+    e = refusal(tmp_path, text.replace('name = "m"\n', 'name = "m"\n\n[trajectory]\nmax_accel_m_s2 = 1\n'
                                        'max_jerk_m_s3 = 10\nmax_speed_m_s = 1\n'))
     assert e.key == "steps[4].speed_m_s" and "at most 1 m/s" in e.reason

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from companion.config import ConfigError
 from companion.mission import FenceCircle, FencePolygon, SafetyVolume, load_mission
+from helpers.missions import refusal
 
 CYL = SafetyVolume(max_distance_m=10.0, max_altitude_m=5.0)
 BOX = SafetyVolume(shape="box", max_distance_m=50.0, max_altitude_m=5.0, north_m=(-2.0, 8.0), east_m=(-3.0, 3.0))
@@ -107,14 +107,6 @@ position_ned_m = [0, 0, -1.5]
 [[steps]]
 action = "land"
 """
-
-
-def refusal(tmp_path, text):
-    p = tmp_path / "m.toml"
-    p.write_text(text)
-    with pytest.raises(ConfigError) as e:
-        load_mission(p)
-    return e.value
 
 
 def test_the_mission_inside_its_volume_loads(tmp_path):
