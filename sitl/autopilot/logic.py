@@ -58,6 +58,7 @@ __all__ = [
     "Severity",
     "AutopilotParams",
     "CommandResult",
+    "Failsafe",
     "Autopilot",
 ]
 
@@ -215,7 +216,20 @@ class CommandResult(NamedTuple):
 
 FORCE_DISARM = float(FORCE_ARM_DISARM)
 
-OFFBOARD_LOST_DESCENDING = "offboard lost, descending"
+class Failsafe(enum.StrEnum):
+    """The failsafe in progress; its value is what reports and STATUSTEXTs say."""
+
+    OFFBOARD_LOST = "offboard lost"
+    """no setpoint for the timeout: holding (PX4 with RC, COM_OBL_RC_ACT hold)"""
+    OFFBOARD_LOST_LANDING = "offboard lost, landing"
+    """still none after the hold: landing"""
+    OFFBOARD_LOST_DESCENDING = "offboard lost, descending"
+    """PX4 v1.16 without RC: descending at once (the heartbeat shows POSCTL)"""
+    IMU_FAILED = "IMU failed"
+    POSITION_LOST = "position lost"
+    """no tracking in the air: descending blind"""
+    POSITION_LOST_LANDING = "position lost, landing"
+    """tracking back during the blind descent: landing on it"""
 
 _POSITION_MODES = (Mode.HOLD, Mode.TAKEOFF, Mode.LAND, Mode.RTL, Mode.GUIDED)
 
@@ -227,7 +241,7 @@ class Autopilot:
     POSITION_TIMEOUT_S = 0.5
     """no tracking sample for this long in the air: position lost (PX4's COM_POS_FS_DELAY is 1 s)"""
     BLIND_DESCENT_M_S = 0.7
-    SENSOR_FAILSAFES = ("IMU failed", "position lost", "position lost, landing")
+    SENSOR_FAILSAFES = (Failsafe.IMU_FAILED, Failsafe.POSITION_LOST, Failsafe.POSITION_LOST_LANDING)
 
     def __init__(self, vehicle: SimVehicle, params: AutopilotParams | None = None) -> None:
         self.vehicle = vehicle
@@ -254,7 +268,7 @@ class Autopilot:
         self.home: Vec3 = vehicle.state.pos_ned_m
         self.lifted_off = False
         self.touchdown_time: float | None = None
-        self.failsafe: str | None = None
+        self.failsafe: Failsafe | None = None
         self.failsafe_time = 0.0
         self.messages: deque[tuple[Severity, str]] = deque(maxlen=32)
         self.events: deque[tuple[float, str]] = deque(maxlen=64)
@@ -412,7 +426,7 @@ class Autopilot:
     def reported_mode(self) -> Mode:
         """The mode the heartbeat shows: PX4 v1.16 shows POSCTL while its offboard-loss failsafe
         descends without RC."""
-        if self.failsafe == OFFBOARD_LOST_DESCENDING and not self.ardupilot:
+        if self.failsafe == Failsafe.OFFBOARD_LOST_DESCENDING and not self.ardupilot:
             return Mode.POSCTL
         return self.mode
 
@@ -682,7 +696,7 @@ class Autopilot:
     def _sensor_failsafes(self) -> None:
         """A failed IMU or lost position in the air: say why once, and land (blind if need be)."""
         v = self.vehicle
-        if self.failsafe != "position lost" and v.position_age_s < 0.05:  # fresh tracking only
+        if self.failsafe != Failsafe.POSITION_LOST and v.position_age_s < 0.05:  # fresh tracking only
             # learn the accelerometer's vertical bias against the tracking system, for a blind descent
             w, x, y, z = v.estimator.q
             f = v.imu_sample.specific_force_body_m_s2
@@ -698,21 +712,21 @@ class Autopilot:
             # the IMU): nothing can keep the vehicle upright, so the flight ends where it is
             self.terminate(f"No attitude: IMU failed ({v.imu_failed}) and tracking lost")
             return
-        if v.imu_failed and self.failsafe != "IMU failed" and self.failsafe != "position lost":
+        if v.imu_failed and self.failsafe != Failsafe.IMU_FAILED and self.failsafe != Failsafe.POSITION_LOST:
             self._say(Severity.CRITICAL, f"IMU failed ({v.imu_failed}): landing")
             self._enter(Mode.LAND)
-            self.failsafe, self.failsafe_time = "IMU failed", self.t
-        if v.position_age_s > self.POSITION_TIMEOUT_S and self.failsafe != "position lost":
+            self.failsafe, self.failsafe_time = Failsafe.IMU_FAILED, self.t
+        if v.position_age_s > self.POSITION_TIMEOUT_S and self.failsafe != Failsafe.POSITION_LOST:
             self._say(Severity.CRITICAL, "Position lost: descending")
             if self.mode != Mode.LAND:
                 self._enter(Mode.LAND)
-            self.failsafe, self.failsafe_time = "position lost", self.t
+            self.failsafe, self.failsafe_time = Failsafe.POSITION_LOST, self.t
             self.blind_vz_m_s = float(v.tracked.vel_ned_m_s[2])
             self._blind_height_m = max(0.0, self.ground_z - float(v.tracked.pos_ned_m[2]))
             self._blind_descended_m = 0.0
-        elif self.failsafe == "position lost" and v.position_age_s < 0.05:
+        elif self.failsafe == Failsafe.POSITION_LOST and v.position_age_s < 0.05:
             self._say(Severity.WARNING, "Position back: landing")  # land where it is, with position
-            self.failsafe = "position lost, landing"
+            self.failsafe = Failsafe.POSITION_LOST_LANDING
             self._enter(Mode.LAND)
 
     def _failsafes(self) -> None:
@@ -721,17 +735,18 @@ class Autopilot:
         if self.mode == Mode.OFFBOARD and self.armed and t - self.last_setpoint_time > p.offboard_loss_timeout_s:
             self.failsafe_time = t
             if self.params.offboard_loss_hold:
-                self.failsafe = "offboard lost"
+                self.failsafe = Failsafe.OFFBOARD_LOST
                 self._say(Severity.CRITICAL, "Failsafe: offboard lost, holding")
                 self._enter(Mode.HOLD)
             else:  # PX4 v1.16 without RC: descend at once (its heartbeat says POSCTL meanwhile)
-                self.failsafe = OFFBOARD_LOST_DESCENDING
+                self.failsafe = Failsafe.OFFBOARD_LOST_DESCENDING
                 self._say(Severity.CRITICAL, "Failsafe: offboard lost, descending")
                 self._enter(Mode.LAND)
-        elif self.failsafe == "offboard lost" and self.mode == Mode.HOLD and t - self.failsafe_time > p.failsafe_hold_s:
+        elif (self.failsafe == Failsafe.OFFBOARD_LOST and self.mode == Mode.HOLD
+              and t - self.failsafe_time > p.failsafe_hold_s):
             self._say(Severity.CRITICAL, "Failsafe: landing")
             self._enter(Mode.LAND)
-            self.failsafe = "offboard lost, landing"
+            self.failsafe = Failsafe.OFFBOARD_LOST_LANDING
         if self.armed and self.landed:
             if not self.lifted_off and t - self.arm_time > p.disarm_preflight_s and self.mode != Mode.TAKEOFF:
                 self._disarm("Disarmed: no take-off")
@@ -783,7 +798,7 @@ class Autopilot:
         if self.landed and mode not in (Mode.TAKEOFF, Mode.OFFBOARD, Mode.GUIDED):
             self._reset_controllers()
             return self._idle_setpoint()
-        if self.failsafe == "position lost":
+        if self.failsafe == Failsafe.POSITION_LOST:
             return self._blind_descent()
         if self._k % self.pos_div != 0:
             return self.setpoint
@@ -822,7 +837,7 @@ class Autopilot:
     def _brake_target(self) -> TrajectoryTarget:
         """What braking steers to: rest, or for PX4's offboard-loss Descend (no RC), which commands its
         descent speed at once, that speed (a climb turns into the descent under the same limits)."""
-        if self.failsafe == OFFBOARD_LOST_DESCENDING and self.mode == Mode.LAND:
+        if self.failsafe == Failsafe.OFFBOARD_LOST_DESCENDING and self.mode == Mode.LAND:
             return TrajectoryTarget(vel_ned_m_s=(0.0, 0.0, self.land_speed_m_s()))
         return BRAKE
 
@@ -941,7 +956,7 @@ class Autopilot:
     _rate_q: tuple | None = None
 
     def _update_landed(self) -> None:
-        if self.failsafe == "position lost":
+        if self.failsafe == Failsafe.POSITION_LOST:
             return  # the tracked position is frozen: the blind descent decides
         ms = self.vehicle.tracked
         height = self.ground_z - ms.pos_ned_m[2]
