@@ -42,12 +42,12 @@ from pymavlink.dialects.v20.ardupilotmega import (
 )
 
 from companion.control import quaternion as quat
-from companion.mavlink import modes
 from companion.mavlink.commands import FORCE_ARM_DISARM
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
 from companion.control.trajectory import PositionReference, ReferenceFilter
 from companion.control.vector import ZERO3, Vec3, sub
 
+from .flavours import FlavourRules, Mode, rules_for
 from ..plant.vehicle import SimVehicle
 from .shaping import BRAKE, ShapedReference, ShapingLimits, TrajectoryTarget, at_rest, shape_step
 
@@ -63,51 +63,14 @@ __all__ = [
 ]
 
 
-class Mode(enum.Enum):
-    """The firmware's modes; what each flavour calls them is in PX4_NAMES and COPTER_NAMES."""
-
-    MANUAL = "manual"
-    ALTCTL = "altctl"
-    POSCTL = "posctl"
-    TAKEOFF = "takeoff"
-    HOLD = "hold"
-    MISSION = "mission"
-    RTL = "rtl"
-    LAND = "land"
-    OFFBOARD = "offboard"
-    GUIDED = "guided"
-    """ArduPilot: flies attitude targets while they are fresh, otherwise holds position"""
-
-
-PX4_NAMES = {
-    Mode.MANUAL: "MANUAL", Mode.ALTCTL: "ALTCTL", Mode.POSCTL: "POSCTL", Mode.TAKEOFF: "TAKEOFF", Mode.HOLD: "HOLD",
-    Mode.MISSION: "MISSION", Mode.RTL: "RTL", Mode.LAND: "LAND", Mode.OFFBOARD: "OFFBOARD",
-}
-"""each mode's PX4 name; the numbers are in companion.mavlink.modes, shared with the companion"""
-
-COPTER_NAMES = {
-    Mode.MANUAL: "STABILIZE", Mode.ALTCTL: "ALT_HOLD", Mode.MISSION: "AUTO", Mode.GUIDED: "GUIDED",
-    Mode.HOLD: "LOITER", Mode.RTL: "RTL", Mode.LAND: "LAND", Mode.POSCTL: "POSHOLD", Mode.TAKEOFF: "GUIDED",
-}
-"""each mode's ArduCopter name (take-off runs in GUIDED); GUIDED_NOGPS and BRAKE are accepted as GUIDED
-and LOITER"""
-_COPTER_ALIASES = {"GUIDED_NOGPS": Mode.GUIDED, "BRAKE": Mode.HOLD}
-
-
 def custom_mode(mode: Mode, flavour: str) -> int:
-    if flavour == "ardupilot":
-        return modes.COPTER_MODES[COPTER_NAMES.get(mode, "STABILIZE")]
-    return modes.px4_custom_mode(PX4_NAMES[mode]) if mode in PX4_NAMES else 0
+    """The heartbeat's custom_mode for ``mode`` in ``flavour`` (:mod:`.flavours`)."""
+    return rules_for(flavour).custom_mode(mode)
 
 
 def mode_from_command(flavour: str, p2: int, p3: int) -> Mode | None:
     """The mode a DO_SET_MODE asks for (param2, param3), in the flavour's numbering."""
-    if flavour == "ardupilot":
-        name = modes.copter_mode_name(p2)
-        found = next((m for m, n in COPTER_NAMES.items() if n == name and m != Mode.TAKEOFF), None)
-        return found or _COPTER_ALIASES.get(name)
-    name = modes.px4_mode_name((p2 << 16) | (p3 << 24)) if 0 <= p2 < 256 and 0 <= p3 < 256 else ""
-    return next((m for m, n in PX4_NAMES.items() if n == name), None)
+    return rules_for(flavour).mode_from_command(p2, p3)
 
 
 class LandedState(enum.IntEnum):
@@ -258,7 +221,9 @@ class Autopilot:
         self.pos_div = int(round(sc.plant_rate_hz / sc.position_rate_hz))
         self.pos_dt = self.pos_div * self.dt
         self.ground_z = sc.airframe.ground_z_m
-        self.mode = Mode.MANUAL if self.params.flavour == "ardupilot" else Mode.HOLD
+        self.rules: FlavourRules = rules_for(self.params.flavour)
+        """what differs between PX4 and ArduCopter (sitl.autopilot.flavours)"""
+        self.mode = self.rules.initial_mode
         """ArduCopter boots in STABILIZE, PX4 in HOLD"""
         self.user_mode = Mode.HOLD
         """the last mode a command chose (PX4 returns to it after a disarm)"""
@@ -302,13 +267,14 @@ class Autopilot:
 
     @property
     def ardupilot(self) -> bool:
-        return self.params.flavour == "ardupilot"
+        """ArduCopter's rules (the server's wire-level choices still ask this)."""
+        return self.rules.name == "ardupilot"
 
     @property
     def has_position(self) -> bool:
         after = self.params.position_after_s
         if after is None:
-            after = 40.0 if self.ardupilot else 0.0
+            after = self.rules.position_after_s
         return self.t >= after
 
     @property
@@ -419,39 +385,26 @@ class Autopilot:
         if self.mode in (Mode.LAND, Mode.TAKEOFF, Mode.RTL):
             # PX4 returns to the last mode the user chose (OFFBOARD after an offboard flight, where it
             # then refuses to arm without a stream); ArduCopter to GUIDED after a GUIDED take-off
-            self.mode = self.user_mode if not self.ardupilot else Mode.GUIDED
+            self.mode = self.rules.mode_after_disarm(self.user_mode)
         self._say(Severity.INFO, text)
 
     @property
     def reported_mode(self) -> Mode:
         """The mode the heartbeat shows: PX4 v1.16 shows POSCTL while its offboard-loss failsafe
         descends without RC."""
-        if self.failsafe == Failsafe.OFFBOARD_LOST_DESCENDING and not self.ardupilot:
-            return Mode.POSCTL
-        return self.mode
+        return self.rules.reported_mode(self.mode, self.failsafe == Failsafe.OFFBOARD_LOST_DESCENDING)
 
-    def _takeoff(self, altitude_amsl_m: float) -> CommandResult:
+    def _takeoff(self, altitude_param: float) -> CommandResult:
+        """MAV_CMD_NAV_TAKEOFF (or PX4's TAKEOFF mode, NaN: its default height); the flavour reads
+        param7 and says where take-off may start."""
         if not self.armed:
             return self._deny("Takeoff denied: disarmed")
-        if self.ardupilot:
-            # ArduCopter: only in GUIDED, param7 is the height above home
-            if self.mode not in (Mode.GUIDED, Mode.TAKEOFF):
-                return self._deny("Takeoff denied: not in GUIDED")
-            if not (math.isfinite(altitude_amsl_m) and 0.5 <= altitude_amsl_m <= 100.0):
-                return self._deny(f"Takeoff denied: altitude {altitude_amsl_m!r}")
-            if self.mode == Mode.TAKEOFF:
-                return CommandResult(MavResult.ACCEPTED)
-            self.takeoff_alt_m = altitude_amsl_m
-            self._enter(Mode.TAKEOFF)
-            return CommandResult(MavResult.ACCEPTED)
-        alt = self.params.takeoff_alt_m
-        if math.isfinite(altitude_amsl_m):
-            alt = altitude_amsl_m - self.origin_alt_m
-            if not 0.5 <= alt <= 100.0:
-                return self._deny(f"Takeoff denied: altitude {alt:.1f} m above home")
+        height = self.rules.takeoff_height(self.mode, altitude_param, self.origin_alt_m, self.params.takeoff_alt_m)
+        if isinstance(height, str):
+            return self._deny(height)
         if self.mode == Mode.TAKEOFF:
             return CommandResult(MavResult.ACCEPTED)
-        self.takeoff_alt_m = alt
+        self.takeoff_alt_m = height
         self._enter(Mode.TAKEOFF)
         return CommandResult(MavResult.ACCEPTED)
 
@@ -475,9 +428,9 @@ class Autopilot:
             return self._deny(f"{mode.name} denied: no RC in this simulation")
         if mode == Mode.MISSION:
             return self._deny("Mission denied: no mission loaded")
-        if mode == Mode.GUIDED and not self.ardupilot or mode == Mode.OFFBOARD and self.ardupilot:
+        if not self.rules.has_mode(mode):
             return self._deny(f"{mode.name} denied: not a mode of this autopilot")
-        if mode == Mode.OFFBOARD and not self.armed and not self.ardupilot:
+        if mode == Mode.OFFBOARD and not self.armed and self.rules.disarmed_offboard_is_intention:
             # PX4 takes a mode while disarmed as the user's intention (arming then needs a stream)
             self.mode = self.user_mode = Mode.OFFBOARD
             return CommandResult(MavResult.ACCEPTED)
@@ -490,7 +443,7 @@ class Autopilot:
                                                           self.vehicle.hover_thrust_n)
                 self.offboard_uses_attitude, self.offboard_target = True, None
                 self.setpoint_sender = sender
-        if mode == Mode.TAKEOFF and not self.ardupilot:
+        if mode == Mode.TAKEOFF and self.rules.takeoff_is_a_mode:
             return self._takeoff(math.nan)
         if mode in (Mode.RTL, Mode.LAND) and (not self.armed or self.landed):
             if mode == Mode.LAND:
@@ -600,7 +553,7 @@ class Autopilot:
         if use_att:
             n = math.sqrt(sum(c * c for c in q))
             q_d = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
-            if not self.params.paper_inner_loop and not self.ardupilot:
+            if not self.params.paper_inner_loop and not self.rules.attitude_with_rates:
                 if use_rates[0] and use_rates[1]:
                     self._reject("attitude and body rates together")
                     if self.rejected["attitude and body rates together"] == 1:
@@ -689,7 +642,7 @@ class Autopilot:
         (HOVER_STALE), converging to the truth with a 10 s time constant of flight (HOVER_LEARN_TC_S)."""
         m = self.vehicle.scenario.vehicle
         true = m.weight_n / m.thrust_max_n
-        if not self.ardupilot:
+        if not self.rules.learns_hover_throttle:
             return true
         return true * (1.0 + (HOVER_STALE - 1.0) * math.exp(-self.airborne_s / HOVER_LEARN_TC_S))
 
@@ -975,7 +928,7 @@ class Autopilot:
             if abs(ms.pos_ned_m[2] - self.target[2]) < 0.1 and speed < 0.3:
                 self._say(Severity.INFO, "Takeoff complete")
                 target = self.target
-                self._enter(Mode.GUIDED if self.ardupilot else Mode.HOLD)
+                self._enter(self.rules.after_takeoff)
                 self.target = target  # hold the take-off altitude, not where the check fired
 
     @property
