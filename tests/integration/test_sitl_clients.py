@@ -260,16 +260,43 @@ def test_a_companions_messages_reach_the_ground_station_whole_at_any_speed_up_an
             if t >= vehicle_s:
                 return sent
 
+    def flood_in_bursts(burst: int, bursts: int, first_index: int) -> int:
+        """``bursts`` floods of ``burst`` DEBUG_VECTs at once, 2 vehicle seconds apart (read from the
+        stamps): each opens a budget window of its own (1 vehicle second from its first frame)
+        however the two processes are scheduled, since a stalled vehicle pauses its world instead of
+        running on with a burst unread. ``burst`` stays within the sender's datagram budget (200)."""
+        sent = 0
+        t0 = send_paced_clock()
+        for k in range(bursts):
+            while send_paced_clock() - t0 < 2.0 * k:
+                pass
+            for _ in range(burst):
+                sender.m.mav.debug_vect_send(b"F_est", first_index + sent, 6.0, 0.0, 0.0)
+                sent += 1
+        return sent
+
+    def send_paced_clock() -> float:
+        newest = sender.wait("ATTITUDE_QUATERNION")
+        while (m := sender.recv(0)) is not None:
+            if m.get_type() == "ATTITUDE_QUATERNION":
+                newest = m
+        return newest.time_boot_ms * 1e-3
+
     paced = send_paced(40.0, 10.0, 0)
     time.sleep(0.5)
     whole = sum(1 for i in got if i < paced)
-    flood = send_paced(300.0, 5.0, 100_000)
+    burst = 150
+    flood = flood_in_bursts(burst, 5, 100_000)
     time.sleep(0.5)
     done.set()
     reader.join(2.0)
     routed = sum(1 for i in got if i >= 100_000)
     report = s.stop()
     assert paced == 400 and whole >= 0.95 * paced, (whole, paced)  # 0.33 with the wall-second budget
-    # 5 vehicle seconds of flood: at most 6 budget windows (one may straddle each end), most of it dropped
-    assert FORWARD_PER_S * 4 <= routed <= FORWARD_PER_S * 6, (routed, flood, report["stats"])
-    assert report["stats"]["forward_dropped"] >= FORWARD_PER_S * 4, report["stats"]  # counted, not silent
+    # 5 bursts of 150, each in a window of its own: 100 of each routed, the rest dropped and counted.
+    # A vehicle starved of CPU for a quarter second may read a burst late, in the next burst's window
+    # (seen once in three runs beside three busy loops): never more than one window's budget per
+    # burst, at least three windows' worth. A budget in wall seconds routes 200 here, none routes 750.
+    assert 3 * FORWARD_PER_S <= routed <= 5 * FORWARD_PER_S, (routed, flood, report["stats"])
+    stats = report["stats"]
+    assert stats["forward_dropped"] >= flood - routed - stats.get("flood_dropped", 0), stats
