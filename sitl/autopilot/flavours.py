@@ -58,8 +58,6 @@ class FlavourRules:
     """the mode at boot"""
     position_after_s = 0.0
     """when a position estimate exists after boot, unless the parameters say otherwise [s]"""
-    offboard_mode = Mode.OFFBOARD
-    """the mode that flies a companion's stream"""
     after_takeoff = Mode.HOLD
     """the mode a finished take-off leaves the vehicle in"""
     takeoff_is_a_mode = True
@@ -101,6 +99,7 @@ class Px4Rules(FlavourRules):
     """PX4 v1.16: OFFBOARD, TAKEOFF as a mode, POSCTL shown during the offboard-loss descent."""
 
     name = "px4"
+    disarmed_offboard_is_intention = True
 
     def custom_mode(self, mode: Mode) -> int:
         return modes.px4_custom_mode(PX4_NAMES[mode]) if mode in PX4_NAMES else 0
@@ -133,7 +132,6 @@ class CopterRules(FlavourRules):
     name = "ardupilot"
     initial_mode = Mode.MANUAL
     position_after_s = 40.0
-    offboard_mode = Mode.GUIDED
     after_takeoff = Mode.GUIDED
     takeoff_is_a_mode = False
     attitude_with_rates = True

@@ -42,6 +42,19 @@ def stream(ap, seconds, q=None, thrust=None, sender=255, type_mask=0, rates=(0.0
         run(ap, 0.02)
 
 
+@pytest.mark.parametrize("flavour, result, mode", [("px4", MavResult.ACCEPTED, Mode.OFFBOARD),
+                                                    ("ardupilot", MavResult.DENIED, Mode.MANUAL)])
+def test_px4_takes_offboard_while_disarmed_as_the_mode_to_arm_into(flavour, result, mode):
+    """PX4 v1.16 accepts OFFBOARD on the ground, disarmed and without a stream (the mode the user
+    chose); arming then needs the stream. ArduCopter has no OFFBOARD."""
+    ap = make(flavour=flavour)
+    assert ap.set_mode(Mode.OFFBOARD).result == result and ap.mode == mode
+    if flavour == "px4":
+        assert ap.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1,)).result != MavResult.ACCEPTED
+        stream(ap, 0.5)
+        assert ap.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1,)).result == MavResult.ACCEPTED
+
+
 def test_takeoff_reaches_the_takeoff_altitude_and_holds_it():
     ap = make()
     airborne(ap)
