@@ -28,7 +28,6 @@ from .names import controllers_for
 from .observers import (
     IncrementalConst,
     IncrementalState,
-    Stepper,
     TorqueObserverState,
     incremental_const,
     incremental_init,
@@ -36,6 +35,7 @@ from .observers import (
     torque_observer_init,
     torque_observer_step,
 )
+from .stepper import Stepper
 from .params import AttitudeGains
 from .quaternion import Quat
 from .vector import (

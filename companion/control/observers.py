@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Generic, NamedTuple, TypeVar
+from typing import NamedTuple
 
 from .jit import jitable
+from .stepper import Stepper
 from .vector import (
     ZERO3,
     Real,
@@ -32,7 +33,7 @@ from .vector import (
 )
 
 __all__ = [
-    "Stepper", "ForceObserver", "MomentumObserver", "MatchingFilter", "lowpass_step",
+    "ForceObserver", "MomentumObserver", "MatchingFilter", "lowpass_step",
     "TorqueObserverState", "torque_observer_init", "torque_observer_step",
     "MATCHING_CAPACITY", "MatchingConst", "MatchingState", "matching_const", "matching_init", "matching_step",
     "ForceObserverConst", "ForceObserverState", "force_observer_const", "force_observer_init", "force_observer_step",
@@ -40,27 +41,6 @@ __all__ = [
     "IncrementalConst", "IncrementalState", "incremental_const", "incremental_init", "incremental_step",
     "lowpass_chain",
 ]
-
-C = TypeVar("C")
-
-
-class Stepper(Generic[C]):
-    """What every law's wrapper shares: its constants (a ``*_const`` record: gains turned into
-    per-step coefficients) built once per step length, by :meth:`_build`, and rebuilt only when
-    the step length changes. The law itself is a pure ``*_step(const, state, ...)``; a wrapper
-    holds its state."""
-
-    _const: C | None = None
-    _dt: float = -1.0
-
-    def _build(self, dt_s: float) -> C:
-        raise NotImplementedError
-
-    def const(self, dt_s: float) -> C:
-        if self._const is None or self._dt != dt_s:
-            self._const, self._dt = self._build(dt_s), dt_s
-        return self._const
-
 
 Stages4 = tuple[Vec3, Vec3, Vec3, Vec3]
 ZERO_STAGES: Stages4 = (ZERO3, ZERO3, ZERO3, ZERO3)

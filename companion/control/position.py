@@ -51,7 +51,6 @@ from .observers import (
     ForceObserverState,
     MomentumConst,
     MomentumState,
-    Stepper,
     force_observer_const,
     force_observer_init,
     force_observer_step,
@@ -59,6 +58,7 @@ from .observers import (
     momentum_init,
     momentum_step,
 )
+from .stepper import Stepper
 from .params import PositionGains
 from .vector import (
     ZERO3,

@@ -62,7 +62,6 @@ class Output:
             return (0.0, 0.0, 0.0)
         return (0.0, 0.0, omega_d_rad_s[2])
 
-
     def wire_rates(self, q: Quat, q_d: Quat, omega_d_rad_s: Vec3, max_rate_rad_s: float) -> Vec3:
         """The body rates as they go on the wire: this mode's (:meth:`rates`), at most
         ``max_rate_rad_s`` in norm. The setpoint guard judges these, not the law's own."""

@@ -15,6 +15,7 @@ from companion.control.quaternion import Quat
 from companion.control.vector import Vec3
 from companion.link.stamps import Admitted, StampGate
 from companion.link.state import VehicleState
+from companion.mavlink.boot_time import boot_ms
 from companion.mavlink.identity import VehicleTarget
 
 from .flavour import Flavour
@@ -114,6 +115,10 @@ class VehicleLink(abc.ABC):
             return False
         self._observe(a, wall)
         return True
+
+    def _setpoint_ms(self, stamp_s: float | None) -> int:
+        """A setpoint's ``time_boot_ms``: the telemetry stamp it was computed from (None: the newest)."""
+        return boot_ms(self.state.t if stamp_s is None else stamp_s)
 
     def _admit(self, stamp_s: float, wall: float, wraps: bool = False) -> Admitted | None:
         """A sample's stamp through the gate (``wraps``: a ``time_boot_ms``, unwrapped there); on a

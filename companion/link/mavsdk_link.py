@@ -319,7 +319,7 @@ class MavsdkLink(VehicleLink):
 
     def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0,
                              stamp_s: float | None = None) -> None:
-        fields = {"time_boot_ms": boot_ms(self.state.t if stamp_s is None else stamp_s),
+        fields = {"time_boot_ms": self._setpoint_ms(stamp_s),
                   "target_system": self.state.sysid, "target_component": 1, "type_mask": type_mask,
                   "q": [float(c) for c in q], "body_roll_rate": float(body_rates_rad_s[0]),
                   "body_pitch_rate": float(body_rates_rad_s[1]), "body_yaw_rate": float(body_rates_rad_s[2]),
@@ -337,7 +337,7 @@ class MavsdkLink(VehicleLink):
         x, y, z = (float(c) for c in pos_ned_m)
         vx, vy, vz = (float(c) for c in vel_ned_m_s)
         ax, ay, az = (float(c) for c in accel_ned_m_s2)
-        fields = {"time_boot_ms": boot_ms(self.state.t if stamp_s is None else stamp_s),
+        fields = {"time_boot_ms": self._setpoint_ms(stamp_s),
                   "target_system": self.state.sysid, "target_component": 1,
                   "coordinate_frame": mavlink.MAV_FRAME_LOCAL_NED, "type_mask": POSITION_TARGET_MASK,
                   "x": x, "y": y, "z": z, "vx": vx, "vy": vy, "vz": vz, "afx": ax, "afy": ay, "afz": az,

@@ -672,7 +672,7 @@ class PymavlinkLink(VehicleLink):
 
     def send_attitude_target(self, q: Quat, body_rates_rad_s: Vec3, thrust: float, type_mask: int = 0,
                              stamp_s: float | None = None) -> None:
-        t_ms = boot_ms(self.state.t if stamp_s is None else stamp_s)
+        t_ms = self._setpoint_ms(stamp_s)
         self._send(self.mav.set_attitude_target_encode(
             t_ms, *self._vehicle(), type_mask, [float(c) for c in q],
             float(body_rates_rad_s[0]), float(body_rates_rad_s[1]), float(body_rates_rad_s[2]), float(thrust)))
@@ -680,7 +680,7 @@ class PymavlinkLink(VehicleLink):
 
     def send_position_target(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, yaw_rad: float,
                              stamp_s: float | None = None) -> None:
-        t_ms = boot_ms(self.state.t if stamp_s is None else stamp_s)
+        t_ms = self._setpoint_ms(stamp_s)
         self._send(self.mav.set_position_target_local_ned_encode(
             t_ms, *self._vehicle(), mavlink.MAV_FRAME_LOCAL_NED, POSITION_TARGET_MASK,
             *(float(c) for c in (*pos_ned_m, *vel_ned_m_s, *accel_ned_m_s2)), float(yaw_rad), 0.0))
