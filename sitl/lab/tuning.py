@@ -228,10 +228,10 @@ CARRY_OVER_SEEDS_FROM = 2001
 
 
 def check(sc: Scenario, segment: Segment, after: Candidate, check_seeds: int, carry_over_seeds: int,
-          jobs: int) -> dict:
+          jobs: int) -> tuple[dict, np.ndarray]:
     """The scenario's own gains against ``after`` on seeds the search never saw: the metric's median,
-    mean and worst and the peak tilt over ``check_seeds`` flights each (``check_m`` holds every
-    metric), and the :func:`carry_over` table over ``carry_over_seeds`` more."""
+    mean and worst and the peak tilt over ``check_seeds`` flights each, and the :func:`carry_over`
+    table over ``carry_over_seeds`` more; with every flight's metric, shape (2, check_seeds)."""
     before = Candidate.defaults(sc)
     flown = evaluate(sc, [before, after], range(CHECK_SEEDS_FROM, CHECK_SEEDS_FROM + check_seeds), jobs,
                      segment=segment)
@@ -251,8 +251,7 @@ def check(sc: Scenario, segment: Segment, after: Candidate, check_seeds: int, ca
         "carry_over_seeds": carry_over_seeds,
         "carry_over": carry_over(sc, after, range(CARRY_OVER_SEEDS_FROM, CARRY_OVER_SEEDS_FROM + carry_over_seeds),
                                  jobs, segment) if carry_over_seeds > 0 else [],
-        "check_m": m.tolist(),
-    }
+    }, m
 
 
 GAIN_LABELS = {
@@ -319,10 +318,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     best, history = tune(sc, args.generations, args.population, list(range(1, args.seeds + 1)), args.jobs,
                          segment=seg, tilt_limit_deg=args.tilt_limit)
-    result = check(sc, seg, best, args.check_seeds, args.carry_over_seeds, args.jobs)
+    result, check_m = check(sc, seg, best, args.check_seeds, args.carry_over_seeds, args.jobs)
     result["tilt_limit_deg"] = args.tilt_limit
     result["history"] = history
-    check_m = np.array(result.pop("check_m"))
     (args.out / "result.json").write_text(json.dumps(result, indent=1))
     (args.out / "tables.md").write_text(tables(result))
     import matplotlib

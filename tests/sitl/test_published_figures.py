@@ -128,7 +128,7 @@ def test_the_published_tuning_tables_are_what_the_code_flies():
     check_seeds = int(NUMBER.search(PAGE.read_text().split("<!-- tuning: check -->")[1].splitlines()[1])[0])
     carry_seeds = int(NUMBER.search(PAGE.read_text().split("<!-- tuning: carry-over -->")[1].splitlines()[1])[0])
     sc = load_scenario("E3_wind")
-    result = check(sc, sc.segments[0], tuned, check_seeds, carry_seeds, jobs=2)
+    result, _ = check(sc, sc.segments[0], tuned, check_seeds, carry_seeds, jobs=2)
     flown = tuning_blocks("".join(f"<!-- tuning: {n} -->\n{t}\n<!-- /tuning -->\n" for n, t in
                                   zip(("gains", "check", "carry-over"), tables(result).strip().split("\n\n"))))
     problems = [p for name in blocks for p in cell_drift(name, blocks[name], flown[name], rel=0.02)]
