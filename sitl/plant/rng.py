@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from companion.control.jit import depends_on, jitable
+from companion.control.jit import depends_on, jitable, lanewise
 
 depends_on(__file__)
 
@@ -98,7 +98,7 @@ _R = 3.442619855899
 _INV_2_24 = 1.0 / 16777216.0
 
 
-@jitable
+@lanewise
 def normal(k: int, counter: int) -> float:
     """The ``counter``-th standard normal of sequence ``k`` (ziggurat, see the module docstring)."""
     attempt = 0
