@@ -41,6 +41,7 @@ __all__ = [
     "where",
     "rint",
     "any_of",
+    "all_of",
     "lowpass_alpha",
     "add",
     "sub",
@@ -169,6 +170,13 @@ def any_of(cond: bool | NDArray[np.bool_]) -> bool:
     """Whether ``cond`` holds for any vehicle (for one vehicle: whether it holds): a branch that
     element-wise code needs to take only when some vehicle needs it."""
     return bool(np.any(cond)) if type(cond) is _ndarray else bool(cond)
+
+
+@float_form(lambda cond: cond)
+def all_of(cond: bool | NDArray[np.bool_]) -> bool:
+    """Whether ``cond`` holds for every vehicle (for one vehicle: whether it holds): a shortcut
+    that element-wise code may take only when all vehicles may take it."""
+    return bool(np.all(cond)) if type(cond) is _ndarray else bool(cond)
 
 
 # --- vectors -------------------------------------------------------------------------

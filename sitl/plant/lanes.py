@@ -5,8 +5,11 @@ The laws of :mod:`companion.control` are written once for floats and for NumPy a
 batch (:mod:`companion.control.vector`): branches on per-vehicle values go through ``where``,
 ``is_scalar`` picks the element-wise path. A :data:`lanes` value is that batch form in compiled
 code: an LLVM ``<W x double>`` with ``+ - * /``, comparisons (giving a :data:`mask`), ``&``, ``|``,
-``~`` and the element-wise helpers (``sqrt``, ``where``, ``minimum`` ... and the functions marked
-:func:`~companion.control.jit.lanewise`, such as the noise's ``rng.normal``). Each lane computes
+``~`` and the element-wise helpers (``sqrt``, ``where``, ``minimum``, ``any_of``, ``all_of`` ... and
+the functions marked :func:`~companion.control.jit.lanewise`, run lane by lane, such as the rare
+rejections of the noise's ziggurat, ``rng.beyond_rectangle``). Integer lanes (the noise keys) have
+int64 ``+ - * & | ^ >> <<`` and index a float64 table (``rng``'s layer edges), so the noise's
+hashing and the ziggurat's first test run for W vehicles at once. Each lane computes
 exactly what the float code computes: IEEE addition, multiplication, division and square root
 round the same in a vector register as in a scalar one, comparisons and selects follow the float
 forms of the helpers (``minimum(a, b) = a if a < b else b``), and the transcendental functions
@@ -241,8 +244,20 @@ def _define() -> None:  # noqa: C901 - one place for every numba definition of t
 
     # --- arithmetic and comparisons ---
     def _lanes_operands(args: tuple[Any, ...]) -> bool:
-        return (any(isinstance(a, LanesType) for a in args)
-                and all(isinstance(a, LanesType) or _number(a) for a in args))
+        """Float arithmetic on lanes: a float lanes operand, or integer lanes with a float (as
+        numba computes ``int + float``: the integer converted first)."""
+        return (all(isinstance(a, (LanesType, IntLanesType)) or _number(a) for a in args)
+                and (any(isinstance(a, LanesType) for a in args)
+                     or (any(isinstance(a, IntLanesType) for a in args)
+                         and any(isinstance(a, types.Float) for a in args))))
+
+    @lower_cast(IntLanesType, LanesType)
+    def _int_lanes_to_lanes(context: Any, builder: Any, fromty: Any, toty: Any, val: Any) -> Any:
+        return builder.sitofp(val, vf64)
+
+    @lower_cast(types.Integer, IntLanesType)
+    def _int_to_int_lanes(context: Any, builder: Any, fromty: Any, toty: Any, val: Any) -> Any:
+        return splat(builder, context.cast(builder, val, fromty, types.int64))
 
     def _binary(op: Any, emit: Any, result: Any) -> None:
         class Template(AbstractTemplate):
@@ -336,6 +351,58 @@ def _define() -> None:  # noqa: C901 - one place for every numba definition of t
     def _invert(context: Any, builder: Any, sig: Any, args: Any) -> Any:
         return builder.not_(args[0])
 
+    # --- integer lanes (the noise's hashing): int64 arithmetic as numba does it on int64 ---
+    def _int_operands(args: tuple[Any, ...]) -> bool:
+        return (len(args) == 2 and any(isinstance(a, IntLanesType) for a in args)
+                and all(isinstance(a, (IntLanesType, types.Integer)) for a in args))
+
+    for op, name in ((operator.add, "add"), (operator.sub, "sub"), (operator.mul, "mul"),
+                     (operator.and_, "and_"), (operator.or_, "or_"), (operator.xor, "xor"),
+                     (operator.rshift, "ashr"), (operator.lshift, "shl")):
+        class IntTemplate(AbstractTemplate):
+            def generic(self, args: Any, kws: Any) -> Any:
+                if not kws and _int_operands(args):
+                    return signature(int_lanes, int_lanes, int_lanes)
+                return None
+
+        infer_global(op)(IntTemplate)
+
+        @lower_builtin(op, IntLanesType, IntLanesType)
+        def _int_op(context: Any, builder: Any, sig: Any, args: Any, name: str = name) -> Any:
+            return getattr(builder, name)(args[0], args[1])
+
+    @overload(operator.getitem, strict=False)
+    def _gather(a: Any, i: Any) -> Any:
+        if (isinstance(a, types.Array) and a.ndim == 1 and a.dtype == types.float64
+                and isinstance(i, IntLanesType)):
+            return lambda a, i: _gather_lanes(a, i)
+        return None
+
+    @intrinsic
+    def _gather_lanes(typingctx: Any, a: Any, i: Any) -> Any:
+        """``a[i]`` for each lane's index (a table look-up: the ziggurat's layer edges)."""
+        def lower(context: Any, builder: Any, sig: Any, args: Any) -> Any:
+            arr = context.make_array(sig.args[0])(context, builder, args[0])
+            out = ir.Constant(vf64, ir.Undefined)
+            for k in range(W):
+                idx = builder.extract_element(args[1], ir.Constant(i32, k))
+                ptr = cgutils.get_item_pointer(context, builder, sig.args[0], arr, [idx])
+                out = builder.insert_element(out, builder.load(ptr), ir.Constant(i32, k))
+            return out
+        return signature(lanes, a, int_lanes), lower
+
+    class FloatOfLanes(AbstractTemplate):
+        def generic(self, args: Any, kws: Any) -> Any:
+            if len(args) == 1 and isinstance(args[0], LanesType):
+                return signature(lanes, lanes)
+            return None
+
+    infer_global(float)(FloatOfLanes)
+
+    @lower_builtin(float, LanesType)
+    def _float_of_lanes(context: Any, builder: Any, sig: Any, args: Any) -> Any:
+        return args[0]
+
     # --- the element-wise helpers of companion.control.vector, for lanes ---
     def as_lanes(context: Any, builder: Any, ty: Any, val: Any) -> Any:
         return context.cast(builder, val, ty, lanes)
@@ -379,6 +446,11 @@ def _define() -> None:  # noqa: C901 - one place for every numba definition of t
     def any_of(context: Any, builder: Any, sig: Any, args: Any) -> Any:
         m = as_mask(context, builder, sig.args[0], args[0])
         return builder.icmp_unsigned("!=", builder.bitcast(m, ir.IntType(W)), ir.Constant(ir.IntType(W), 0))
+
+    def all_of(context: Any, builder: Any, sig: Any, args: Any) -> Any:
+        m = as_mask(context, builder, sig.args[0], args[0])
+        ones = ir.Constant(ir.IntType(W), (1 << W) - 1)
+        return builder.icmp_unsigned("==", builder.bitcast(m, ir.IntType(W)), ones)
 
     vector_forms = {"sqrt": sqrt, "absolute": absolute, "minimum": minimum, "maximum": maximum, "clip": clip,
                     "where": select, "rint": rint}
@@ -470,6 +542,8 @@ def _define() -> None:  # noqa: C901 - one place for every numba definition of t
             overload(fn, jit_options={}, strict=False)(typer)
         elif name == "any_of":
             overload_lanes(fn, types.boolean, any_of)
+        elif name == "all_of":
+            overload_lanes(fn, types.boolean, all_of)
         elif name in vector_forms:
             overload_lanes(fn, lanes, vector_forms[name])
         else:
