@@ -7,9 +7,11 @@ Figures (issue 15's targets in brackets), all on the E3_wind scenario (3 m/s tur
 ISM+DO/ISM+DO, every noise on):
 
 - one vehicle: real-time factor of ``Simulation.run`` (objects) and ``simulate_compiled`` [>= 500x];
-- batches: vehicle-steps per second of the objects' array path and of ``fly_batch`` on both cores
-  (a share of the vehicles per Python thread, the GIL released) and on one thread, with CPU
-  seconds [>= 8 M/s on both cores];
+- batches: vehicle-steps per second of the objects' array path, of ``fly_batch`` (vehicles in
+  lanes, W per instruction) and of ``fly_one_by_one`` (the layout before lanes), on both cores (a
+  share of the vehicles per Python thread, the GIL released) and on one thread, with CPU seconds,
+  each beside ONE compiled vehicle on one core measured in the same run [>= 8 M/s on both cores;
+  issue 24: 4000 vehicles on both cores >= 4x one vehicle on one core];
 - bytes per vehicle: the resident memory a 4000-vehicle batch (no log) adds to a process that
   has already flown, over 4000, each engine in a fresh process [<= 16 KB];
 - compile: a whole process that flies one vehicle for 10 ms, with an empty kernel cache (cold) and
@@ -70,15 +72,24 @@ def _batch_rows(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     return np.array([K.FLIGHT_CODEC.pack(c) for c in consts]), K.FLIGHT_CODEC.arrays(consts[0])
 
 
-def compiled_batch(n: int, duration_s: float, threads: int | None = None) -> tuple[float, float]:
-    """(wall s, CPU s) of ``n`` vehicles for ``duration_s`` on ``fly_batch``, no log."""
+def compiled_batch(n: int, duration_s: float, threads: int | None = None,
+                   layout: str = "lanes") -> tuple[float, float]:
+    """(wall s, CPU s) of ``n`` vehicles for ``duration_s``, no log: ``fly_batch`` (``layout``
+    "lanes", what a batch flies on) or ``fly_one_by_one`` (the layout before lanes)."""
     rows, arrays = _batch_rows(n)
     steps = int(duration_s * 1000)
     logs, final = np.empty((n, 0, len(K.LOG_COLUMNS))), np.empty((n, 3))
-    K.fly_batch(rows[:1], *arrays, 1, logs[:1], final[:1])
+    fly = K.fly_batch if layout == "lanes" else K.fly_one_by_one
+    fly(rows[:8], *arrays, 1, logs[:8], final[:8])  # load (or compile) the kernel
     c0, t0 = time.process_time(), time.perf_counter()
-    K.fly_batch(rows, *arrays, steps, logs, final, threads)
+    fly(rows, *arrays, steps, logs, final, threads)
     return time.perf_counter() - t0, time.process_time() - c0
+
+
+def one_core_one_vehicle(duration_s: float, repeat: int) -> float:
+    """Vehicle-steps per second of ONE compiled vehicle on one core (the best of ``repeat``)."""
+    wall = min(compiled_batch(1, duration_s, 1, "one by one")[0] for _ in range(repeat))
+    return duration_s * 1000 / wall
 
 
 def objects_batch(n: int, duration_s: float) -> tuple[float, float]:
@@ -90,19 +101,32 @@ def objects_batch(n: int, duration_s: float) -> tuple[float, float]:
 
 
 def batches(quick: bool) -> None:
-    print(f"\n## batches, {SCENARIO}, vehicle-steps/s (the compiled loop in {K.cores()} Python threads, "
-          f"GIL released)")
-    print(f"{'engine':>22} {'vehicles':>8} {'sim s':>6} {'wall s':>7} {'CPU s':>7} {'M steps/s':>10} "
-          f"{'M steps/CPU-s':>14}")
-    runs = [("objects (arrays)", 1000, 1.0 if not quick else 0.3, None)]
+    """Every batch beside ONE compiled vehicle on one core, measured in the same run: the lanes
+    (``fly_batch``) and the vehicles one by one (``fly_one_by_one``, the layout before them)."""
+    scale = 3 if quick else 1
+    one = one_core_one_vehicle(10.0 / scale, 3)
+    print(f"\n## batches, {SCENARIO}, vehicle-steps/s (Python threads, the GIL released; {K.cores()} cores; "
+          f"lanes of {K.lanes.W} vehicles)")
+    print(f"one compiled vehicle on one core: {one / 1e6:.2f} M steps/s (best of 3, {10 / scale:g} s simulated); "
+          f"'x one' = a row's M steps/s over it")
+    print(f"{'engine':>29} {'vehicles':>8} {'sim s':>6} {'wall s':>7} {'CPU s':>7} {'M steps/s':>10} "
+          f"{'M steps/CPU-s':>14} {'x one':>6}")
+    runs: list[tuple[str, int, float, int | None, str]] = [("objects (arrays)", 1000, 1.0 / scale, None, "")]
     for n, d in ((2, 10.0), (100, 5.0), (1000, 2.0), (4000, 1.0)):
-        runs.append(("compiled, 1 thread", n, d / (3 if quick else 1), 1))
-        runs.append(("compiled, all threads", n, d / (3 if quick else 1), None))
-    for name, n, d, threads in runs:
-        wall, cpu = objects_batch(n, d) if name.startswith("objects") else compiled_batch(n, d, threads)
+        for layout in ("one by one", "lanes"):
+            if layout == "lanes" and n < K.lanes.W:
+                continue
+            runs.append((f"compiled {layout}, 1 thread", n, d / scale, 1, layout))
+            runs.append((f"compiled {layout}, all", n, d / scale, None, layout))
+    ratios = {}
+    for name, n, d, threads, layout in runs:
+        wall, cpu = objects_batch(n, d) if not layout else compiled_batch(n, d, threads, layout)
         steps = n * d * 1000
-        print(f"{name:>22} {n:>8} {d:>6.2f} {wall:>7.2f} {cpu:>7.2f} {steps / wall / 1e6:>10.2f} "
-              f"{steps / cpu / 1e6:>14.2f}")
+        ratios[name, n] = steps / wall / one
+        print(f"{name:>29} {n:>8} {d:>6.2f} {wall:>7.2f} {cpu:>7.2f} {steps / wall / 1e6:>10.2f} "
+              f"{steps / cpu / 1e6:>14.2f} {steps / wall / one:>6.2f}")
+    print(f"4000 vehicles on all cores: lanes {ratios['compiled lanes, all', 4000]:.2f}x one vehicle on one core "
+          f"(issue 24: >= 4x), one by one {ratios['compiled one by one, all', 4000]:.2f}x")
 
 
 MEMORY = """
@@ -155,28 +179,29 @@ t0 = time.perf_counter()
 sys.path.insert(0, {root!r})
 from sitl.lab.simulation import simulate_compiled
 from sitl.plant.scenario import load_scenario
-simulate_compiled(load_scenario("E3_wind"), "ism_do", "ism_do", 1, 0.01)
+simulate_compiled(load_scenario("E3_wind"), "ism_do", "ism_do", {seeds}, 0.01)
 print(time.perf_counter() - t0)
 """
 
 
-def _start(cache: str) -> tuple[float, float]:
+def _start(cache: str, seeds: str = "1") -> tuple[float, float]:
     """(whole-process wall s, in-process s from first import to the flight's end)"""
     env = {**os.environ, "NUMBA_CACHE_DIR": cache}
     t0 = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", START.format(root=str(ROOT))], env=env, capture_output=True,
-                         text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", START.format(root=str(ROOT), seeds=seeds)], env=env,
+                         capture_output=True, text=True, check=True)
     return time.perf_counter() - t0, float(out.stdout.split()[-1])
 
 
 def compile_times(repeat: int) -> None:
-    print("\n## start: a process that flies one vehicle for 10 ms (whole process / import to flight's end)")
-    with tempfile.TemporaryDirectory() as cache:
-        cold = _start(cache)
-        cached = [_start(cache) for _ in range(repeat)]
-    print(f"  cold (empty cache): {cold[0]:.2f} s / {cold[1]:.2f} s")
-    for w, i in cached:
-        print(f"  cached:             {w:.2f} s / {i:.2f} s")
+    for what, seeds in (("one vehicle", "1"), ("a batch of 8 vehicles (lanes: both kernels)", "list(range(1, 9))")):
+        print(f"\n## start: a process that flies {what} for 10 ms (whole process / import to flight's end)")
+        with tempfile.TemporaryDirectory() as cache:
+            cold = _start(cache, seeds)
+            cached = [_start(cache, seeds) for _ in range(repeat)]
+        print(f"  cold (empty cache): {cold[0]:.2f} s / {cold[1]:.2f} s")
+        for w, i in cached:
+            print(f"  cached:             {w:.2f} s / {i:.2f} s")
 
 
 COMPILE_EVENTS = """

@@ -42,7 +42,7 @@ def main() -> None:
     @numba.njit(parallel=True, error_model="numpy")  # type: ignore[misc]
     def fly_prange(rows, forces, torques, waypoints, steps, logs, final):  # type: ignore[no-untyped-def]
         for i in numba.prange(rows.shape[0]):
-            st = fly_loop(unpack(rows[i], forces, torques, waypoints), steps, logs[i])
+            st = fly_loop(unpack(rows[i], forces, torques, waypoints), steps, logs[i:i + 1])
             p = st.body.pos_ned_m
             final[i, 0] = p[0]
             final[i, 1] = p[1]

@@ -26,14 +26,15 @@ import os
 from pathlib import Path
 from typing import Any, Callable, TypeVar
 
-__all__ = ["jitable", "float_form", "kernel", "register_with_numba", "numba_available", "cache_dir", "SOURCES",
-           "depends_on", "KERNEL_OPT"]
+__all__ = ["jitable", "float_form", "lanewise", "kernel", "register_with_numba", "numba_available", "cache_dir",
+           "SOURCES", "depends_on", "KERNEL_OPT", "float_forms", "lanewise_functions"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 _JITABLE: list[Callable[..., Any]] = []
 _FLOAT_FORMS: list[tuple[Callable[..., Any], Callable[..., Any]]] = []
-_registered = (0, 0)
+_LANEWISE: list[Callable[..., Any]] = []
+_registered = (0, 0, 0)
 
 SOURCES: list[Path] = [Path(__file__).parent]
 """Folders (or files) whose ``.py`` sources compiled kernels depend on (:func:`depends_on`)."""
@@ -64,6 +65,24 @@ def float_form(impl: Callable[..., Any]) -> Callable[[F], F]:
         return fn
 
     return wrap
+
+
+def lanewise(fn: F) -> F:
+    """Mark ``fn``, a function of numbers, as applied vehicle by vehicle when a compiled batch calls
+    it with lanes (``sitl.plant.lanes``): the noise's draws, whose loops and integer hashing
+    have no element-wise form. Compiled for numbers like :func:`jitable`; returns ``fn`` itself."""
+    _LANEWISE.append(fn)
+    return fn
+
+
+def float_forms() -> list[tuple[Callable[..., Any], Callable[..., Any]]]:
+    """Every :func:`float_form` helper with its float implementation."""
+    return list(_FLOAT_FORMS)
+
+
+def lanewise_functions() -> list[Callable[..., Any]]:
+    """Every :func:`lanewise` function."""
+    return list(_LANEWISE)
 
 
 def numba_available() -> bool:
@@ -105,11 +124,17 @@ def register_with_numba() -> None:
         overload(fn, jit_options={}, strict=False)(_returning(impl))
     for fn in _JITABLE[_registered[1]:]:
         register_jitable(fn)
-    _registered = (len(_FLOAT_FORMS), len(_JITABLE))
+    for fn in _LANEWISE[_registered[2]:]:
+        overload(fn, jit_options={}, strict=False)(_returning(fn))
+    _registered = (len(_FLOAT_FORMS), len(_JITABLE), len(_LANEWISE))
 
 
 def _returning(impl: Callable[..., Any]) -> Callable[..., Any]:
-    def typer(*args: Any) -> Callable[..., Any]:
+    """The typer of a float implementation: it declines lanes (a batch's values, whose types say
+    ``lanes``), which their own overloads serve (``sitl.plant.lanes``)."""
+    def typer(*args: Any) -> Callable[..., Any] | None:
+        if any(getattr(a, "lanes", False) for a in args):
+            return None
         return impl
 
     return typer

@@ -39,6 +39,9 @@ __all__ = [
     "maximum",
     "clip",
     "where",
+    "rint",
+    "any_of",
+    "all_of",
     "lowpass_alpha",
     "add",
     "sub",
@@ -154,6 +157,26 @@ def where(cond: bool | NDArray[np.bool_], a: Real, b: Real) -> Real:
     if type(cond) is _ndarray:
         return np.where(cond, a, b)
     return a if cond else b
+
+
+@float_form(lambda x: float(round(x)))
+def rint(x: Real) -> Real:
+    """The nearest integer (halves to even), as a float."""
+    return np.rint(x) if type(x) is _ndarray else float(round(x))
+
+
+@float_form(lambda cond: cond)
+def any_of(cond: bool | NDArray[np.bool_]) -> bool:
+    """Whether ``cond`` holds for any vehicle (for one vehicle: whether it holds): a branch that
+    element-wise code needs to take only when some vehicle needs it."""
+    return bool(np.any(cond)) if type(cond) is _ndarray else bool(cond)
+
+
+@float_form(lambda cond: cond)
+def all_of(cond: bool | NDArray[np.bool_]) -> bool:
+    """Whether ``cond`` holds for every vehicle (for one vehicle: whether it holds): a shortcut
+    that element-wise code may take only when all vehicles may take it."""
+    return bool(np.all(cond)) if type(cond) is _ndarray else bool(cond)
 
 
 # --- vectors -------------------------------------------------------------------------

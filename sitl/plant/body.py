@@ -15,7 +15,7 @@ from companion.control import quaternion as quat
 from companion.control.allocation import Rotors4, RotorModel, wrench_from_rotor_speeds_sq
 from companion.control.jit import depends_on, jitable
 from companion.control.quaternion import Quat
-from companion.control.vector import Real, Vec3, is_scalar, mat_t_vec, matvec, sqrt, where
+from companion.control.vector import Real, Vec3, any_of, is_scalar, mat_t_vec, matvec, sqrt, where
 
 depends_on(__file__)
 
@@ -148,7 +148,7 @@ def plant_step(c: PlantConst, s: RigidBody, rotor_cmd_rad_s: Rotors4, wind_ned_m
         o2 + i2 * (t_rz - (o0 * jw1 - o1 * jw0) + h2) * dt_s,
     )
     q = quat.integrate(q, om, dt_s)
-    if not is_scalar(pos[2]) or pos[2] >= c.ground_z_m:  # a batch: element-wise, whoever is down
+    if any_of(pos[2] >= c.ground_z_m):  # a batch: element-wise, whoever is down
         pos, vel, q, om, sf_body = _ground_contact(c, pos, vel, q, om, sf_body, thrust, rot, dt_s, s.q, s.pos_ned_m)
     return (RigidBody(pos, vel, q, om, (w1, w2, w3, w4)),
             Forces(sf_body, thrust, (t_rx, t_ry, t_rz), (hx, hy, hz), torque_dist))

@@ -9,6 +9,13 @@ tuple, with integers and booleans restored exactly (float64 holds every integer 
 the array fields given as arguments, in the order ``arrays(value)`` lists them (arrays are shared by
 the whole batch). The arrays travel as plain arguments, not inside a tuple, because numba's
 parallel loops cannot take a tuple holding arrays into the loop body.
+
+For a batch flown in lanes (:mod:`.lanes`, W vehicles per register) the same rows, transposed to
+columns (``cols[j, i]`` the j-th number of vehicle i), give ``unpack_lanes(cols, i0, a0, ...)``:
+the floats of the fields named in ``per_vehicle`` (a dotted path names a field and all below it)
+and the integers of those named in ``per_vehicle_ints`` (the noise keys) become lanes of vehicles
+``i0 .. i0 + W - 1``; every other number is vehicle ``i0``'s, the batch's own (``uniform``: the
+columns that must then hold one value for the whole batch).
 """
 
 from __future__ import annotations
@@ -29,6 +36,10 @@ class Codec(NamedTuple):
     unpack: Callable[..., Any]
     arrays: Callable[[Any], tuple[Any, ...]]
     """the array fields of a value, in the order ``unpack`` takes them"""
+    unpack_lanes: Callable[..., Any]
+    """``(cols, i0, a0, ...)``: the value of W vehicles (see the module docstring)"""
+    uniform: tuple[int, ...]
+    """the columns ``unpack_lanes`` reads as the batch's (one value for all vehicles)"""
 
 
 _CACHE: dict[tuple[Any, ...], Codec] = {}
@@ -47,42 +58,58 @@ def _shape(value: Any) -> Any:
     return "float"
 
 
-def codec(example: Any) -> Codec:
-    """The codec of ``example``'s structure (NamedTuples and tuples of floats, ints, bools, arrays)."""
+def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tuple[str, ...] = ()) -> Codec:
+    """The codec of ``example``'s structure (NamedTuples and tuples of floats, ints, bools, arrays);
+    ``per_vehicle`` (floats) and ``per_vehicle_ints`` (integers): the dotted paths of the fields that
+    are lanes in ``unpack_lanes``."""
     shape = _shape(example)
-    if shape in _CACHE:
-        return _CACHE[shape]
+    key = (shape, per_vehicle, per_vehicle_ints)
+    if key in _CACHE:
+        return _CACHE[key]
     names: dict[str, Any] = {}
     index = [0]
     n_arrays = [0]
+    uniform: list[int] = []
 
-    def build(s: Any, path: str) -> str:
+    def below(path: str, paths: tuple[str, ...]) -> bool:
+        return any(path == p or path.startswith(p + ".") for p in paths)
+
+    def build(s: Any, path: str) -> tuple[str, str]:
+        """(row expression, lanes expression) of the field at ``path``."""
         if s == "array":
             n_arrays[0] += 1
-            return f"a{n_arrays[0] - 1}"
-        if s == "bool":
+            return f"a{n_arrays[0] - 1}", f"a{n_arrays[0] - 1}"
+        if s in ("bool", "int", "float"):
+            j = index[0]
             index[0] += 1
-            return f"(row[{index[0] - 1}] != 0.0)"
-        if s == "int":
-            index[0] += 1
-            return f"int(row[{index[0] - 1}])"
-        if s == "float":
-            index[0] += 1
-            return f"row[{index[0] - 1}]"
+            one = {"bool": f"(row[{j}] != 0.0)", "int": f"int(row[{j}])", "float": f"row[{j}]"}[s]
+            if s == "float" and below(path, per_vehicle):
+                return one, f"load(cols, {j}, i0)"
+            if s == "int" and below(path, per_vehicle_ints):
+                return one, f"load_int(cols, {j}, i0)"
+            uniform.append(j)
+            return one, one.replace(f"row[{j}]", f"cols[{j}, i0]")
         cls, items = s
-        parts = [build(item, f"{path}[{i}]") for i, item in enumerate(items)]
+        fields = getattr(cls, "_fields", None)
+        parts = [build(item, f"{path}.{fields[i] if fields else i}".lstrip("."))
+                 for i, item in enumerate(items)]
         if cls is tuple:
-            return "(" + ", ".join(parts) + ("," if len(parts) == 1 else "") + ")"
+            return tuple("(" + ", ".join(p[k] for p in parts) + ("," if len(parts) == 1 else "") + ")"
+                         for k in (0, 1))  # type: ignore[return-value]
         name = f"T{len(names)}"
         names[name] = cls
-        return f"{name}(" + ", ".join(parts) + ")"
+        return tuple(f"{name}(" + ", ".join(p[k] for p in parts) + ")" for k in (0, 1))  # type: ignore[return-value]
 
-    expr = build(shape, "value")
+    expr, lanes_expr = build(shape, "")
     params = "".join(f", a{i}" for i in range(n_arrays[0]))
-    src = f"def unpack(row{params}):\n    return {expr}\n"
-    scope: dict[str, Any] = dict(names)
+    src = (f"def unpack(row{params}):\n    return {expr}\n\n"
+           f"def unpack_lanes(cols, i0{params}):\n    return {lanes_expr}\n")
+    from .lanes import load, load_int
+
+    scope: dict[str, Any] = dict(names, load=load, load_int=load_int)
     exec(compile(src, f"<codec of {type(example).__name__}>", "exec"), scope)  # noqa: S102
     unpack = jitable(scope["unpack"])
+    unpack_lanes = jitable(scope["unpack_lanes"])
 
     def pack(value: Any) -> list[float]:
         out: list[float] = []
@@ -112,6 +139,6 @@ def codec(example: Any) -> Codec:
         walk(value)
         return tuple(out)
 
-    c = Codec(index[0], pack, unpack, arrays)
-    _CACHE[shape] = c
+    c = Codec(index[0], pack, unpack, arrays, unpack_lanes, tuple(uniform))
+    _CACHE[key] = c
     return c

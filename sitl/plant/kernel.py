@@ -11,6 +11,13 @@ the vehicles per thread.
 The laws are the control core's own functions (``companion.control``), compiled where a kernel
 calls them; noise is drawn in the loop from counter-based streams (:mod:`.rng`).
 
+A batch flies in lanes (:mod:`.lanes`): the same :func:`fly_loop`, compiled a second time with
+every per-vehicle number a SIMD register of W vehicles (structure of arrays, W wide), so each
+instruction of a law steps W vehicles; the clock and everything else the batch shares stay plain
+numbers. Each group of W vehicles runs its whole flight with its state in registers and on the
+stack (the time loop inside the group loop: a 4000-vehicle state stepped in memory would stream
+~5 MB per step through the caches). A vehicle flies in a lane bit for bit as it flies alone.
+
 Built from a :class:`~sitl.plant.scenario.Scenario` by :func:`vehicle_const` (in Python, once).
 """
 
@@ -34,7 +41,7 @@ from companion.control.attitude import (
     attitude_init,
     attitude_step,
 )
-from companion.control.jit import depends_on, jitable, kernel
+from companion.control.jit import depends_on, jitable, kernel, numba_available
 from companion.control.outer_loop import (
     AttitudeSetpoint,
     LoopConst,
@@ -48,7 +55,7 @@ from companion.control.reference import rate_const, rate_init
 from companion.control.trajectory import PositionReference, ReferenceState, TrajectoryConst, reference_filter_step
 from companion.control.vector import ZERO3, Vec3, lowpass_alpha
 
-from . import rng
+from . import lanes, rng
 from .body import Forces, PlantConst, RigidBody, plant_const, plant_step
 from .codec import codec
 from .disturbances import PROFILE_KINDS, profile_factor
@@ -65,7 +72,7 @@ __all__ = [
     "profiles_array", "profiles_at",
     "VehicleConst", "VehicleState", "vehicle_const", "vehicle_init", "vehicle_step",
     "FlightConst", "flight_const", "LOG_COLUMNS", "fly_loop", "FLIGHT_CODEC", "fly_many", "fly_compiled",
-    "fly_batch", "cores",
+    "fly_batch", "fly_one_by_one", "fly_lanes", "fly_lanes_compiled", "lanes_apply", "PER_VEHICLE", "cores",
 ]
 
 # --- sensors: IMU at the plant rate, 60 Hz tracking with delay -----------------------------------------
@@ -148,11 +155,16 @@ def mocap_init(body: RigidBody) -> MocapState:
 
 @jitable
 def mocap_step(c: SensorConst, st: MocapState, t_s: float, body: RigidBody) -> tuple[MocapState, bool]:
-    """Take a sample when one is due, deliver those whose delay has passed; (state, delivered)."""
+    """Take a sample when one is due, deliver those whose delay has passed; (state, delivered).
+
+    The queue is read at fixed positions only (a position chosen at run time would copy the whole
+    queue, which in lanes is 36 registers): the samples in transit are the last ``n_pending``,
+    oldest first, their due times increasing."""
     next_s, taken, pending, n = st.next_s, st.taken, st.pending, st.n_pending
-    if t_s + 1e-9 < next_s and (n == 0 or pending[PENDING - n].due_s > t_s + 1e-9):
+    due = t_s + 1e-9
+    if due < next_s and _head_due_s(pending, n) > due:
         return st, False  # 15 of 16 steps: nothing to take or deliver, the state is not rebuilt
-    if t_s + 1e-9 >= next_s:
+    if due >= next_s:
         k = c.mocap_keys
         pos, q = tracked_pose(body.pos_ned_m, body.q, c.mocap_pos_noise_m, c.mocap_att_noise_rad,
                               (rng.normal(k[0], taken), rng.normal(k[1], taken), rng.normal(k[2], taken)),
@@ -161,15 +173,39 @@ def mocap_step(c: SensorConst, st: MocapState, t_s: float, body: RigidBody) -> t
         n = min(n + 1, PENDING)
         taken += 1
         next_s += c.mocap_period_s
-    latest, has_prev, pos_prev = st.latest, st.has_prev, st.pos_prev
-    fresh = False
-    while n > 0 and pending[PENDING - n].due_s <= t_s + 1e-9:
-        sample = pending[PENDING - n]
-        n -= 1
-        latest, has_prev, pos_prev = _deliver(c, latest, has_prev, pos_prev, sample.taken_s, sample.pos_ned_m,
-                                              sample.q)
-        fresh = True
+    m = (st.latest, st.has_prev, st.pos_prev, n, False)
+    m = _deliver_if_due(c, m, pending[0], PENDING - 4, due)
+    m = _deliver_if_due(c, m, pending[1], PENDING - 3, due)
+    m = _deliver_if_due(c, m, pending[2], PENDING - 2, due)
+    m = _deliver_if_due(c, m, pending[3], PENDING - 1, due)
+    latest, has_prev, pos_prev, n, fresh = m
     return MocapState(next_s, taken, pending, n, latest, has_prev, pos_prev), fresh
+
+
+@jitable
+def _head_due_s(pending: tuple[Pending, Pending, Pending, Pending], n: int) -> float:
+    """When the oldest sample in transit is due (infinity when none is)."""
+    if n == 0:
+        return math.inf
+    if n == 4:
+        return pending[0].due_s
+    if n == 3:
+        return pending[1].due_s
+    if n == 2:
+        return pending[2].due_s
+    return pending[3].due_s
+
+
+@jitable
+def _deliver_if_due(c: SensorConst, m: tuple[MocapSample, bool, Vec3, int, bool], sample: Pending, j: int,
+                    due: float) -> tuple[MocapSample, bool, Vec3, int, bool]:
+    """Deliver ``sample``, at position ``j`` of the queue, if it is in transit and due:
+    ``m`` is (latest, has_prev, pos_prev, n_pending, delivered)."""
+    latest, has_prev, pos_prev, n, fresh = m
+    if j < PENDING - n or sample.due_s > due:
+        return m
+    latest, has_prev, pos_prev = _deliver(c, latest, has_prev, pos_prev, sample.taken_s, sample.pos_ned_m, sample.q)
+    return latest, has_prev, pos_prev, n - 1, True
 
 
 @jitable
@@ -482,16 +518,23 @@ def target_at(rows: NDArray[np.float64], t_s: float) -> tuple[Vec3, float]:
     return (rows[i, 1], rows[i, 2], rows[i, 3]), rows[i, 4]
 
 
+_widen = lanes.widener(frozenset({"t_s", "next_s", "due_s", "taken_s", "time_s"}))
+"""The flight's state with lanes for every number but the clock's (the time, the tracking
+system's schedule), which the vehicles of a batch share."""
+
+
 @jitable
-def fly_loop(c: FlightConst, steps: int, log: NDArray[np.float64]) -> VehicleState:
+def fly_loop(c: FlightConst, steps: int, logs: NDArray[np.float64]) -> VehicleState:
     """Fly ``steps`` plant steps from a hover at the setpoint; log every ``log_div`` steps into
-    ``log`` (rows of LOG_COLUMNS; ``log.shape[0]`` rows at most). Returns the final state."""
+    ``logs[k]`` for the k-th vehicle of ``c`` (rows of LOG_COLUMNS, ``logs.shape[1]`` rows at most).
+    Returns the final state. ``c`` is one vehicle's (``logs`` a block of one) or, with lanes for its
+    per-vehicle numbers, W vehicles' (:func:`fly_lanes`): the same code flies both."""
     vc = c.vehicle
     pos0, yaw0 = target_at(c.waypoints, 0.0)
-    st = vehicle_init(vc, pos0, yaw0, True)
     hover = c.loop.position.mass_kg * c.gravity_m_s2  # the controller's nominal weight
-    ls = LoopState(position_init(), ZERO3, hover, quat.IDENTITY, False, rate_init())
-    sp = AttitudeSetpoint(st.body.q, ZERO3, hover, ZERO3)
+    st = _widen(vehicle_init(vc, pos0, yaw0, True), hover)
+    ls = _widen(LoopState(position_init(), ZERO3, hover, quat.IDENTITY, False, rate_init()), hover)
+    sp = _widen(AttitudeSetpoint(st.body.q, ZERO3, hover, ZERO3), hover)
     ref_state = ReferenceState(pos0, ZERO3, ZERO3, yaw0)
     ref = PositionReference(pos0, ZERO3, ZERO3, yaw0)
     pos_dt = c.pos_div * vc.dt_s
@@ -515,8 +558,8 @@ def fly_loop(c: FlightConst, steps: int, log: NDArray[np.float64]) -> VehicleSta
             st = _drained(st)
             ls, sp = position_loop_step(c.loop, ls, ms.pos_ned_m, ms.vel_ned_m_s, st.q_est, sf_ned, True, ref)
         st = vehicle_step(vc, st, sp, True, ZERO3, ZERO3)
-        if k % c.log_div == 0 and row < log.shape[0]:
-            _log_row(log[row], vc, st, ref, sp, ls)
+        if k % c.log_div == 0 and row < logs.shape[1]:
+            _write_row(logs, row, _log_values(vc, st, ref, sp, ls))
             row += 1
     return st
 
@@ -530,8 +573,18 @@ def _drained(st: VehicleState) -> VehicleState:
 
 
 @jitable
-def _log_row(out: NDArray[np.float64], vc: VehicleConst, st: VehicleState, ref: PositionReference,
-             sp: AttitudeSetpoint, ls: LoopState) -> None:
+def _write_row(logs: NDArray[np.float64], row: int, vals: tuple[float, ...]) -> None:
+    """``vals`` into row ``row`` of each vehicle's log (``logs[k]``: vehicle k's, lane k of ``vals``)."""
+    for k in range(logs.shape[0]):
+        v = lanes.lane(vals, k)
+        for i in range(len(v)):
+            logs[k, row, i] = v[i]
+
+
+@jitable
+def _log_values(vc: VehicleConst, st: VehicleState, ref: PositionReference, sp: AttitudeSetpoint,
+                ls: LoopState) -> tuple[float, ...]:
+    """The LOG_COLUMNS of the flight's present state."""
     b, f = st.body, st.forces
     h_att = attitude_disturbance_estimate(vc.attitude, st.attitude)
     vals = (st.t_s, b.pos_ned_m[0], b.pos_ned_m[1], b.pos_ned_m[2], b.vel_ned_m_s[0], b.vel_ned_m_s[1],
@@ -547,8 +600,7 @@ def _log_row(out: NDArray[np.float64], vc: VehicleConst, st: VehicleState, ref: 
             st.attitude.s[0], st.attitude.s[1], st.attitude.s[2],
             ls.position.s[0], ls.position.s[1], ls.position.s[2],
             st.wind_ned_m_s[0], st.wind_ned_m_s[1], st.wind_ned_m_s[2])
-    for i in range(len(vals)):
-        out[i] = vals[i]
+    return vals
 
 
 def _example() -> FlightConst:
@@ -557,10 +609,19 @@ def _example() -> FlightConst:
     return flight_const(Scenario(name="codec"), "ism_do", "ism_do", 1)
 
 
-FLIGHT_CODEC = codec(_example())
+PER_VEHICLE = ("vehicle.sensors.gyro_bias_rad_s", "vehicle.sensors.accel_bias_m_s2", "vehicle.attitude",
+               "loop.position")
+"""The numbers that differ between the vehicles of a batch, the lanes of :func:`fly_lanes`: what the
+seed draws (the sensor biases; the noise keys, :data:`PER_VEHICLE_KEYS`) and the gains (a sweep's
+``GAIN_TABLES``). Everything else a batch shares (:func:`fly_batch` checks that it does)."""
+PER_VEHICLE_KEYS = ("vehicle.sensors.gyro_keys", "vehicle.sensors.accel_keys", "vehicle.sensors.mocap_keys",
+                    "vehicle.wind.keys", "vehicle.wind.init_keys")
+
+FLIGHT_CODEC = codec(_example(), PER_VEHICLE, PER_VEHICLE_KEYS)
 """Per-vehicle rows of a batch: every number of a :class:`FlightConst`; its arrays (the force and
 torque profiles, the waypoints: ``FLIGHT_CODEC.arrays(c)``) are the batch's."""
 _unpack_flight = FLIGHT_CODEC.unpack
+_unpack_lanes = FLIGHT_CODEC.unpack_lanes
 
 
 def fly_many(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
@@ -569,16 +630,36 @@ def fly_many(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: ND
     """:func:`fly_loop` for each vehicle (a row of ``FLIGHT_CODEC``, with the batch's arrays), one
     after another; ``logs[i]`` gets vehicle i's log, ``final[i]`` its last position."""
     for i in range(rows.shape[0]):
-        st = fly_loop(_unpack_flight(rows[i], forces, torques, waypoints), steps, logs[i])
+        st = fly_loop(_unpack_flight(rows[i], forces, torques, waypoints), steps, logs[i:i + 1])
         p = st.body.pos_ned_m
         final[i, 0] = p[0]
         final[i, 1] = p[1]
         final[i, 2] = p[2]
 
 
+def fly_lanes(cols: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
+              waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
+              final: NDArray[np.float64]) -> None:
+    """:func:`fly_loop` for W vehicles at a time, each group's per-vehicle numbers in lanes
+    (:mod:`.lanes`): ``cols`` is the FLIGHT_CODEC rows transposed (a column per vehicle), padded to
+    a whole number of groups; ``logs`` and ``final`` have a row per real vehicle."""
+    n = final.shape[0]
+    for i0 in range(0, n, lanes.W):
+        st = fly_loop(_unpack_lanes(cols, i0, forces, torques, waypoints), steps, logs[i0:i0 + lanes.W])
+        for k in range(min(lanes.W, n - i0)):
+            p = lanes.lane(st.body.pos_ned_m, k)
+            final[i0 + k, 0] = p[0]
+            final[i0 + k, 1] = p[1]
+            final[i0 + k, 2] = p[2]
+
+
+if numba_available():
+    lanes.register()
 fly_compiled = kernel(fly_many, nogil=True)
 """:func:`fly_many` compiled (cached on disk) and free of the GIL while it runs, or as it is without
-numba. One vehicle flies as a batch of one: a single kernel to compile."""
+numba. One vehicle flies as a batch of one."""
+fly_lanes_compiled = kernel(fly_lanes, nogil=True)
+""":func:`fly_lanes` compiled (on its first call: a second compile of the laws, with lanes)."""
 
 
 def cores() -> int:
@@ -592,19 +673,72 @@ def cores() -> int:
 def fly_batch(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
               waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
               final: NDArray[np.float64], threads: int | None = None) -> None:
-    """:data:`fly_compiled` over the vehicles, split into ``threads`` contiguous shares (default:
-    :func:`cores`), one Python thread each. The compiled loop releases the GIL, so the shares fly
-    at once; each vehicle is computed alone, so the split changes no number. Threads rather than
-    numba's ``parallel=True``: the same speed on this machine, ~4 s less to compile, and no
-    threading layer (numba's OpenMP cannot survive a fork(); docs/benchmarks.md)."""
+    """Fly every vehicle (a row of FLIGHT_CODEC each) on every core: ``threads`` (default
+    :func:`cores`) Python threads, each a contiguous share of the vehicles, the compiled loop
+    releasing the GIL. A batch of at least W vehicles that differ only in :data:`PER_VEHICLE` flies
+    in lanes (:data:`fly_lanes_compiled`, W vehicles per instruction); any other (one vehicle, a
+    batch that differs elsewhere, numba absent or disabled) flies one vehicle after another
+    (:data:`fly_compiled`). Each vehicle is computed alone either way, bit for bit the same, so
+    neither the split nor the path changes a number. Threads rather than numba's ``parallel=True``:
+    the same speed on this machine, ~4 s less to compile, and no threading layer (numba's OpenMP
+    cannot survive a fork(); docs/benchmarks.md)."""
+    if rows.shape[0] >= lanes.W and lanes_apply(rows):
+        _fly_in_lanes(rows, forces, torques, waypoints, steps, logs, final, threads)
+        return
+    fly_one_by_one(rows, forces, torques, waypoints, steps, logs, final, threads)
+
+
+def fly_one_by_one(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
+                   waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
+                   final: NDArray[np.float64], threads: int | None = None) -> None:
+    """:data:`fly_compiled` over the vehicles, one after another in each of ``threads`` contiguous
+    shares: any batch, but no faster per core than one vehicle (``benchmarks/bench_kernel.py``
+    measures it beside the lanes)."""
     n = rows.shape[0]
     shares = max(1, min(n, threads or cores()))
-    if shares == 1:
-        fly_compiled(rows, forces, torques, waypoints, steps, logs, final)
-        return
     edges = [n * k // shares for k in range(shares + 1)]
-    with ThreadPoolExecutor(shares) as pool:
-        done = [pool.submit(fly_compiled, rows[a:b], forces, torques, waypoints, steps, logs[a:b], final[a:b])
-                for a, b in zip(edges[:-1], edges[1:])]
+    _in_threads(fly_compiled, [(rows[a:b], forces, torques, waypoints, steps, logs[a:b], final[a:b])
+                               for a, b in zip(edges[:-1], edges[1:])])
+
+
+def lanes_apply(rows: NDArray[np.float64]) -> bool:
+    """Whether vehicles ``rows`` can fly in lanes: compiled, and the same in every uniform column."""
+    if not numba_available():
+        return False
+    import numba
+
+    if numba.config.DISABLE_JIT:
+        return False
+    u = rows[:, list(FLIGHT_CODEC.uniform)]
+    same = (u == u[0]) | (np.isnan(u) & np.isnan(u[0]))
+    return bool(same.all())
+
+
+def _fly_in_lanes(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
+                  waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
+                  final: NDArray[np.float64], threads: int | None) -> None:
+    """:data:`fly_lanes_compiled`, whole groups of W vehicles per thread (the last one padded with
+    copies of the last vehicle, flown and not kept)."""
+    n, w = rows.shape[0], lanes.W
+    groups = -(-n // w)
+    shares = max(1, min(groups, threads or cores()))
+    edges = [min(n, w * (groups * k // shares)) for k in range(shares + 1)]
+    jobs = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        padded = -(-(b - a) // w) * w
+        cols = np.empty((rows.shape[1], padded))
+        cols[:, :b - a] = rows[a:b].T
+        cols[:, b - a:] = rows[b - 1][:, None]
+        jobs.append((cols, forces, torques, waypoints, steps, logs[a:b], final[a:b]))
+    _in_threads(fly_lanes_compiled, jobs)
+
+
+def _in_threads(fn: object, jobs: list[tuple[object, ...]]) -> None:
+    """``fn(*job)`` for each job, each in its own thread (the caller's for a single job)."""
+    if len(jobs) == 1:
+        fn(*jobs[0])  # type: ignore[operator]
+        return
+    with ThreadPoolExecutor(len(jobs)) as pool:
+        done = [pool.submit(fn, *job) for job in jobs]  # type: ignore[arg-type]
         for d in done:
             d.result()

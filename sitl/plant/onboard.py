@@ -22,7 +22,7 @@ from companion.control.jit import depends_on, jitable
 from companion.control.outer_loop import AttitudeSetpoint
 from companion.control.params import AttitudeGains, VehicleParams
 from companion.control.quaternion import Quat
-from companion.control.vector import ZERO3, Real, Vec3, clip, sqrt
+from companion.control.vector import ZERO3, Real, Vec3, clip, is_scalar, maximum, rint, sqrt
 
 depends_on(__file__)  # the kernel inlines estimator_correct
 
@@ -73,12 +73,15 @@ def estimator_correct(attitude_gain: Real, bias_gain: Real, q_est: Quat, gyro_bi
 
 
 @jitable
-def command_level(w_sq: float, lo_rad_s: float, hi_rad_s: float, step_rad_s: float) -> float:
+def command_level(w_sq: Real, lo_rad_s: float, hi_rad_s: float, step_rad_s: float) -> Real:
     """One rotor's speed command [rad/s] for a squared speed: clipped to range, then on the
-    motor interface's grid (the compiled kernel's mixer calls this too)."""
-    w = math.sqrt(w_sq) if w_sq > 0.0 else 0.0
-    w = lo_rad_s if w < lo_rad_s else (hi_rad_s if w > hi_rad_s else w)
-    return lo_rad_s + round((w - lo_rad_s) / step_rad_s) * step_rad_s
+    motor interface's grid (the compiled kernel's mixer calls this too, on floats or lanes)."""
+    if is_scalar(w_sq):  # one vehicle: plain comparisons, the same numbers as the element-wise form
+        w = math.sqrt(w_sq) if w_sq > 0.0 else 0.0
+        w = lo_rad_s if w < lo_rad_s else (hi_rad_s if w > hi_rad_s else w)
+        return lo_rad_s + round((w - lo_rad_s) / step_rad_s) * step_rad_s
+    w = clip(sqrt(maximum(w_sq, 0.0)), lo_rad_s, hi_rad_s)
+    return lo_rad_s + rint((w - lo_rad_s) / step_rad_s) * step_rad_s
 
 
 def _round(x: Real) -> Real:

@@ -28,11 +28,13 @@ import math
 
 import numpy as np
 
-from companion.control.jit import depends_on, jitable
+from companion.control.jit import depends_on, jitable, lanewise
+from companion.control.vector import all_of, where
 
 depends_on(__file__)
 
-__all__ = ["STREAMS", "MASK32", "mix32", "key", "bits", "uniform", "normal", "normals"]
+__all__ = ["STREAMS", "MASK32", "mix32", "key", "bits", "uniform", "layer_draw", "normal", "beyond_rectangle",
+           "normals"]
 
 STREAMS = {
     "gyro": 1,
@@ -99,17 +101,38 @@ _INV_2_24 = 1.0 / 16777216.0
 
 
 @jitable
+def layer_draw(b: int) -> tuple[float, float, bool]:
+    """The ziggurat's first test of 32 random bits ``b``: (z, sign, inside) -- ``sign * z`` is the
+    draw when ``inside`` (z under the layer's rectangle: 97.2 % of 200 000 draws). Integer and float
+    arithmetic only, so a batch in lanes runs it for its vehicles at once."""
+    layer = b & 127
+    sign = ((b >> 7) & 1) * 2.0 - 1.0  # exactly 1.0 or -1.0
+    z = ((b >> 8) + 0.5) * _INV_2_24 * float(_X[layer])
+    return z, sign, z < float(_X[layer + 1])
+
+
+@jitable
 def normal(k: int, counter: int) -> float:
-    """The ``counter``-th standard normal of sequence ``k`` (ziggurat, see the module docstring)."""
+    """The ``counter``-th standard normal of sequence ``k`` (ziggurat, see the module docstring):
+    the first test (:func:`layer_draw`) for every vehicle of a batch at once, the rest
+    (:func:`beyond_rectangle`) only when one of them needs it."""
+    z, sign, inside = layer_draw(bits(k, counter, 0))
+    if all_of(inside):
+        return sign * z
+    return where(inside, sign * z, beyond_rectangle(k, counter))
+
+
+@lanewise
+def beyond_rectangle(k: int, counter: int) -> float:
+    """:func:`normal` by the whole ziggurat, the wedges and the tail included (a batch in lanes
+    runs it vehicle by vehicle: loops and logarithms)."""
     attempt = 0
     while True:
         b = bits(k, counter, attempt)
-        layer = b & 127
-        sign = 1.0 if (b >> 7) & 1 else -1.0
-        x_outer, x_inner = float(_X[layer]), float(_X[layer + 1])
-        z = ((b >> 8) + 0.5) * _INV_2_24 * x_outer
-        if z < x_inner:  # inside the layer's rectangle that lies under the curve
+        z, sign, inside = layer_draw(b)
+        if inside:
             return sign * z
+        layer = b & 127
         if layer == 0:  # the base's tail beyond r (Marsaglia 1964)
             while True:
                 attempt += 1

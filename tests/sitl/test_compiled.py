@@ -120,3 +120,57 @@ def test_a_parallel_batch_flies_each_vehicle_as_it_flies_alone() -> None:
             i += 1
     # the two gain sets did fly differently (the gains reached the vehicles)
     assert np.abs(batch["x"][:, 0] - batch["x"][:, 3]).max() > 1e-4
+
+
+def _rows(members: list[tuple[Scenario, tuple[int, ...]]]) -> tuple[np.ndarray, tuple[np.ndarray, ...], int, int]:
+    """(FLIGHT_CODEC rows, the batch's arrays, plant steps, log rows) of ISM+DO vehicles."""
+    from sitl.plant import kernel as K
+
+    consts = [K.flight_const(sc, "ism_do", "ism_do", s) for sc, seeds in members for s in seeds]
+    sc = members[0][0]
+    steps = int(round(sc.duration_s * sc.plant_rate_hz))
+    return (np.array([K.FLIGHT_CODEC.pack(c) for c in consts]), K.FLIGHT_CODEC.arrays(consts[0]), steps,
+            -(-steps // consts[0].log_div))
+
+
+def test_a_batch_in_lanes_flies_each_vehicle_as_it_flies_alone() -> None:
+    """Seven vehicles in turbulence with every noise on, two gain sets: a whole group of lanes
+    and a padded one, on two threads, each vehicle bit for bit what it flies alone (the lanes
+    compute what the float code computes, lane by lane; a vehicle read from the wrong lane, a
+    padded lane kept or a per-vehicle number taken as the batch's would each break it)."""
+    from sitl.plant import kernel as K
+
+    sc = load_scenario("E3_wind").with_changes(duration_s=2.0)
+    stiff = sc.with_changes(position=dataclasses.replace(sc.position, omega_c_rad_s=(2.5, 2.5, 1.5)),
+                            attitude=dataclasses.replace(sc.attitude, omega_c_rad_s=15.0))
+    rows, arrays, steps, n_log = _rows([(sc, (4, 9, 11, 12)), (stiff, (4, 20, 21))])
+    n = rows.shape[0]
+    assert K.lanes_apply(rows) and n > K.lanes.W and n % K.lanes.W != 0  # the lanes path, a padded group
+    lanes_log, lanes_final = np.empty((n, n_log, len(LOG_COLUMNS))), np.empty((n, 3))
+    K.fly_batch(rows, *arrays, steps, lanes_log, lanes_final, threads=2)
+    one_log, one_final = np.empty_like(lanes_log), np.empty_like(lanes_final)
+    for i in range(n):
+        K.fly_one_by_one(rows[i:i + 1], *arrays, steps, one_log[i:i + 1], one_final[i:i + 1], threads=1)
+    np.testing.assert_array_equal(lanes_log, one_log)
+    np.testing.assert_array_equal(lanes_final, one_final)
+    # every vehicle flew its own flight: the seeds and the gains reached their lanes
+    x = one_log[:, :, LOG_COLUMNS.index("x")]
+    assert min(np.abs(x[i] - x[j]).max() for i in range(n) for j in range(i)) > 1e-5
+
+
+def test_a_batch_that_differs_in_a_shared_number_flies_one_by_one_with_the_same_numbers() -> None:
+    """A vehicle mass differs between vehicles: no lanes (the mass is one number for the whole
+    group of lanes), and the batch still flies each vehicle as it flies alone."""
+    from sitl.plant import kernel as K
+
+    sc = load_scenario("E3_wind").with_changes(duration_s=0.5)
+    heavy = sc.with_changes(vehicle=dataclasses.replace(sc.vehicle, mass_kg=1.2 * sc.vehicle.mass_kg))
+    rows, arrays, steps, n_log = _rows([(sc, (1, 2, 3)), (heavy, (4, 5))])
+    assert not K.lanes_apply(rows)
+    n = rows.shape[0]
+    batch_log, batch_final = np.empty((n, n_log, len(LOG_COLUMNS))), np.empty((n, 3))
+    K.fly_batch(rows, *arrays, steps, batch_log, batch_final)
+    for i in range(n):
+        one_log, one_final = np.empty((1, n_log, len(LOG_COLUMNS))), np.empty((1, 3))
+        K.fly_one_by_one(rows[i:i + 1], *arrays, steps, one_log, one_final)
+        np.testing.assert_array_equal(batch_log[i], one_log[0])
