@@ -38,6 +38,7 @@ from companion.control import quaternion as quat
 from .health import HEALTH_COLUMNS
 from .offboard import PositionTarget, Tick
 from companion.link.state import VehicleState
+from companion.mavlink.wire import frames
 
 __all__ = ["COLUMNS", "SegmentStats", "FlightRecorder"]
 
@@ -171,10 +172,13 @@ class FlightRecorder:
     # --- raw traffic -------------------------------------------------------------------------
 
     def traffic(self, datagram: bytes) -> None:
+        """A datagram into the .tlog: one record per frame (a datagram may carry several; readers
+        such as pymavlink's expect one), or the datagram whole if it is not whole frames."""
         if self.failed is not None:
             return
         try:
-            self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + datagram)
+            stamp = struct.pack(">Q", int(time.time() * 1e6))
+            self._tlog.write(b"".join(stamp + frame for frame in frames(datagram) or (datagram,)))
             self._flush_due()
         except OSError as exc:
             self._fail(exc)

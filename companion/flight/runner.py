@@ -420,12 +420,14 @@ class Flight:
             if state.t >= due_stamp:
                 return
             with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(arrived.wait(), remaining - precise_s)
+                async with asyncio.timeout(remaining - precise_s):  # no task per wait, as wait_for makes
+                    await arrived.wait()
 
     async def _streamer(self) -> None:
         while not self.finished.is_set():
             try:
-                await asyncio.wait_for(self._new_setpoint.wait(), 0.1)
+                async with asyncio.timeout(0.1):
+                    await self._new_setpoint.wait()
             except TimeoutError:
                 continue
             self._new_setpoint.clear()

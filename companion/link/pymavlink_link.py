@@ -198,10 +198,10 @@ class PymavlinkLink(VehicleLink):
         heartbeat_next = 0.0
         queue = self._queue
         while not self._closed and not stop.is_set():
-            try:
-                item: tuple[bytes, float, tuple[str, int]] | None = await asyncio.wait_for(queue.get(), timeout=0.2)
-            except TimeoutError:
-                item = None
+            item: tuple[bytes, float, tuple[str, int]] | None = None
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(0.2):  # no task per datagram, as wait_for makes
+                    item = await queue.get()
             while item is not None:
                 data, arrived, addr = item
                 if self.traffic is not None:

@@ -7,6 +7,13 @@ moment of contention never clears: in a 2 h soak the vehicle flew setpoints that
 0.1-0.4 s in its socket buffer (0.5-1.9 s of vehicle time) and lost control. Here the reader
 callback empties the socket (up to ``max_batch`` datagrams, so a flood cannot starve the
 caller's own work) every time it runs. Used by both ends: ``sitl.autopilot.server`` and the pymavlink link.
+
+With ``coalesce_bytes`` the frames sent to one address in one stretch of the loop (one callback
+or one step of a task: the simulated vehicle's steps between two waits) leave together, in
+datagrams of at most that many bytes, when the loop next runs its ready callbacks, as
+ArduPilot's UDP links carry several whole frames per packet (``AP_HAL`` packetise). Each
+datagram costs its receiver an event-loop wake-up, a ``recvfrom`` and a queue round, whatever
+it carries; the frames and their order are the same.
 """
 
 from __future__ import annotations
@@ -22,12 +29,15 @@ MAX_DATAGRAM = 65535
 
 class UdpEndpoint:
     def __init__(self, on_datagram: Callable[[bytes, tuple[str, int]], None],
-                 on_error: Callable[[OSError], None] | None = None, max_batch: int = 512) -> None:
+                 on_error: Callable[[OSError], None] | None = None, max_batch: int = 512,
+                 coalesce_bytes: int = 0) -> None:
         self.on_datagram = on_datagram
         self.on_error = on_error
         self.max_batch = max_batch
+        self.coalesce_bytes = coalesce_bytes
         self.send_dropped = 0
         """datagrams not sent because the socket's send buffer was full"""
+        self._outbox: dict[tuple[str, int], bytearray] = {}
         self._sock: socket.socket | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
 
@@ -66,6 +76,32 @@ class UdpEndpoint:
             self.on_datagram(data, addr)
 
     def sendto(self, data: bytes, addr: tuple[str, int]) -> None:
+        """``data`` (whole frames) to ``addr``: now, or with the frames that follow it in this stretch
+        of the loop (``coalesce_bytes``)."""
+        if self._sock is None:
+            return
+        if not self.coalesce_bytes:
+            self._send_now(data, addr)
+            return
+        outbox = self._outbox
+        pending = outbox.get(addr)
+        if pending is None:
+            if not outbox and self._loop is not None:
+                self._loop.call_soon(self.flush)
+            outbox[addr] = bytearray(data)
+        elif len(pending) + len(data) > self.coalesce_bytes:
+            self._send_now(bytes(pending), addr)
+            outbox[addr] = bytearray(data)
+        else:
+            pending += data
+
+    def flush(self) -> None:
+        """Send what waits to be coalesced."""
+        outbox, self._outbox = self._outbox, {}
+        for addr, pending in outbox.items():
+            self._send_now(bytes(pending), addr)
+
+    def _send_now(self, data: bytes, addr: tuple[str, int]) -> None:
         if self._sock is None:
             return
         try:
@@ -79,6 +115,7 @@ class UdpEndpoint:
     def close(self) -> None:
         if self._sock is None:
             return
+        self.flush()
         if self._loop is not None and not self._loop.is_closed():
             self._loop.remove_reader(self._sock.fileno())
         self._sock.close()

@@ -59,6 +59,10 @@ from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
 __all__ = ["ServerConfig", "MavlinkServer", "MAX_PEERS", "PX4_LISTEN", "PX4_PEER", "trajectory_target"]
 
 MAX_DATAGRAM = 4096
+DATAGRAM_BYTES = 1400
+"""the frames sent to one client in one stretch of the loop share datagrams of at most this many
+bytes (an Ethernet MTU less the IP and UDP headers, with room to spare), as ArduPilot's UDP links
+pack whole frames (companion/mavlink/udp.py)"""
 MAX_REASONS = 64
 """distinct rejection reasons kept by name; the rest are counted as "other" (a fuzzer or an
 attacker must not grow the vehicle's memory with made-up parameter names or command ids)"""
@@ -796,7 +800,7 @@ class MavlinkServer:
     # --- running -------------------------------------------------------------------------
 
     async def start(self) -> None:
-        endpoint = UdpEndpoint(self.datagram_received, self._socket_error)
+        endpoint = UdpEndpoint(self.datagram_received, self._socket_error, coalesce_bytes=DATAGRAM_BYTES)
         endpoint.open(self.config.listen)
         self.transport = endpoint
         self.peers.seq_salt = endpoint.sockname[1]
@@ -831,7 +835,8 @@ class MavlinkServer:
                     pacing.resume(now, ap.t)
                     self._setpoint_arrived.clear()
                     with contextlib.suppress(TimeoutError):  # the datagram handler sets the event
-                        await asyncio.wait_for(self._setpoint_arrived.wait(), REPEAT_WALL_S)
+                        async with asyncio.timeout(REPEAT_WALL_S):  # no task per wait, as wait_for makes
+                            await self._setpoint_arrived.wait()
                     continue
                 step = pacing.plan(now, ap.t, ap.follows_stream)
                 steps = 0

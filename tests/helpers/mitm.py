@@ -63,22 +63,26 @@ class Mitm:
                     self.client = addr
                     self.back.sendto(data, self.vehicle)
                 elif self.client is not None:
-                    if self._note(data) & self.drop:
-                        self.dropped += 1
-                        continue
+                    msgs = self._note(data)
+                    if any(m.get_type() in self.drop for m in msgs):  # a datagram may carry several frames
+                        kept = [m for m in msgs if m.get_type() not in self.drop]
+                        self.dropped += len(msgs) - len(kept)
+                        if not kept:
+                            continue
+                        data = b"".join(bytes(m.get_msgbuf()) for m in kept)
                     with self._lock:  # a forged frame is never sent before the genuine one it copies
                         self.front.sendto(data, self.client)
                     self.down += 1
 
-    def _note(self, data: bytes) -> set[str]:
-        """Remember the newest of each kind; the kinds in this datagram."""
+    def _note(self, data: bytes) -> list[Any]:
+        """Remember the newest of each kind; the messages of this datagram."""
         try:
             msgs = self._parser.parse_buffer(data) or []
         except Exception:
-            return set()
+            return []
         for m in msgs:
             self._latest[m.get_type()] = m
-        return {m.get_type() for m in msgs}
+        return msgs
 
     def latest(self, kind: str, timeout: float = 5.0) -> Any:
         end = time.monotonic() + timeout
