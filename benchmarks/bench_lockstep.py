@@ -2,6 +2,7 @@
 
     python benchmarks/bench_lockstep.py                 # 3 flights of missions/waypoints.toml
     python benchmarks/bench_lockstep.py --profile 25    # and cProfile the vehicle (top 25 by own time)
+    python benchmarks/bench_lockstep.py --pieces        # and the companion's CPU per piece
 
 The companion (this process) flies the mission against ``sitl --flavour paper --lockstep`` (the
 world advances 10 ms per setpoint) with the speed-up capped at 1000, so only the two processes
@@ -9,6 +10,12 @@ limit it. Per flight: simulated seconds over wall seconds (what a user sees), an
 CPU seconds per simulated second. The vehicle's *capacity* is the inverse of its CPU per
 simulated second: how fast it would fly behind a companion that costs nothing, on another core
 [issue 15: the bundled MAVLink vehicle >= 50x sustained in lockstep].
+
+``--pieces`` flies once more with the companion's pieces timed in place (CPU time of each call,
+``time.process_time``): parse (datagrams to messages), state (messages into the vehicle state),
+law (the control step: reference, position and attitude laws, guard), encode (setpoints and debug
+values to frames), send (``sendto``), record (the flight's CSV row and .tlog); the rest is the
+event loop, the waits and everything else, the whole process's CPU less the pieces.
 
 Results and the machine: docs/benchmarks.md ("The MAVLink vehicle in lockstep").
 """
@@ -25,7 +32,9 @@ import statistics
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -39,6 +48,65 @@ MISSION = ROOT / "missions" / "waypoints.toml"
 def _cpu(who: int) -> float:
     r = resource.getrusage(who)
     return r.ru_utime + r.ru_stime
+
+
+PIECES = {  # piece: (module, class or None, function) timed in place
+    "parse": ("companion.link.pymavlink_link", None, "parse_datagram"),
+    "state": ("companion.link.pymavlink_link", "PymavlinkLink", "_handle"),
+    "law": ("companion.flight.offboard", "OffboardController", "step"),
+    "encode": ("companion.link.pymavlink_link", "PymavlinkLink", "_send"),
+    "send": ("companion.mavlink.udp", "UdpEndpoint", "_send_now"),
+    "record": ("companion.flight.recorder", "FlightRecorder", "row"),
+    "record ": ("companion.flight.recorder", "FlightRecorder", "traffic"),
+}
+"""``encode`` times all of ``_send``; the ``sendto`` and the .tlog inside it are taken out again"""
+
+
+@contextlib.contextmanager
+def timed_pieces() -> Iterator[dict[str, list[float]]]:
+    """CPU seconds and calls of each piece while the block runs (the originals put back after)."""
+    import importlib
+    spent: dict[str, list[float]] = {}
+    undo = []
+    for piece, (module, cls, name) in PIECES.items():
+        owner = getattr(importlib.import_module(module), cls) if cls else importlib.import_module(module)
+        original = getattr(owner, name)
+        acc = spent[piece] = [0.0, 0]
+
+        def timed(*args: Any, _f: Callable[..., Any] = original, _acc: list[float] = acc, **kw: Any) -> Any:
+            c0 = time.process_time()
+            try:
+                return _f(*args, **kw)
+            finally:
+                _acc[0] += time.process_time() - c0
+                _acc[1] += 1
+        setattr(owner, name, timed)
+        undo.append((owner, name, original))
+    try:
+        yield spent
+    finally:
+        for owner, name, original in undo:
+            setattr(owner, name, original)
+
+
+def pieces_table(r: dict[str, float], spent: dict[str, list[float]]) -> None:
+    sim = r["sim_s"]
+    per = {p.strip(): 0.0 for p in spent}
+    calls = {p.strip(): 0 for p in spent}
+    for p, (cpu, n) in spent.items():
+        per[p.strip()] += cpu
+        calls[p.strip()] += int(n)
+    # encode's own time: _send less the sendto and the .tlog record it makes
+    per["encode"] -= per["send"] + spent["record "][0]
+    total = r["companion_cpu_per_sim_s"] * sim
+    print(f"\n## the companion per piece ({sim:.1f} s simulated; CPU ms per simulated s; share of its CPU)")
+    print(f"{'piece':>8} {'calls/sim s':>12} {'CPU ms/sim s':>13} {'us/call':>8} {'share':>6}")
+    for p in per:
+        print(f"{p:>8} {calls[p] / sim:12.0f} {1000 * per[p] / sim:13.2f} {1e6 * per[p] / max(calls[p], 1):8.1f} "
+              f"{per[p] / total:6.0%}")
+    rest = total - sum(per.values())
+    print(f"{'rest':>8} {'':>12} {1000 * rest / sim:13.2f} {'':>8} {rest / total:6.0%}   (event loop, waits, the rest)")
+    print(f"{'all':>8} {'':>12} {1000 * total / sim:13.2f}")
 
 
 def fly_once(out: Path, profile: Path | None) -> dict[str, float]:
@@ -66,6 +134,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--profile", type=int, default=0, metavar="N", help="profile one more flight's vehicle, top N")
+    ap.add_argument("--pieces", action="store_true", help="one more flight with the companion's pieces timed")
     args = ap.parse_args()
     print(f"# bench_lockstep  {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())}  nproc {os.cpu_count()}  "
           f"load {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
@@ -83,6 +152,10 @@ def main() -> None:
         print(f"median: {med['speedup']:.1f}x real time; vehicle capacity {med['capacity']:.1f}x; "
               f"companion {med['companion_cpu_per_sim_s']:.4f} CPU s per simulated s "
               f"(capacity {1 / med['companion_cpu_per_sim_s']:.1f}x)")
+        if args.pieces:
+            with timed_pieces() as spent:
+                r = fly_once(Path(tmp) / "pieces", None)
+            pieces_table(r, spent)
         if args.profile:
             prof = Path(tmp) / "vehicle.prof"
             r = fly_once(Path(tmp) / "profiled", prof)

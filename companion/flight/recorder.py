@@ -124,6 +124,9 @@ class SegmentStats:
         return d
 
 
+_ROW = ",".join(("%.4f", "%.4f", "%d", "%d", "%d", *("%.5g",) * (len(COLUMNS) - 7), "%.4f", "%.5g")) + "\r\n"
+"""one row of timeseries.csv, formatted in one operation (the csv module's own line ending)"""
+
 FLUSH_INTERVAL_S = 0.25
 """the record is handed to the operating system at least this often (wall time): a companion killed
 outright (kill -9, a crash) loses at most the last quarter second of its record"""
@@ -244,10 +247,9 @@ class FlightRecorder:
         if self.failed is not None:
             return
         try:
-            self._csv.writerow((
-                f"{t:.4f}", f"{wall:.4f}", seg.index if seg else -1, int(state.offboard), int(streaming),
-                *(f"{x:.5g}" for x in (*p, *v, *ref, *q, *sp, *thrust, *force, thrust_max_n, thrust_max_est_n)),
-                f"{state.t_pos:.4f}", f"{err:.5g}",
+            self._csv_file.write(_ROW % (
+                t, wall, seg.index if seg else -1, int(state.offboard), int(streaming),
+                *p, *v, *ref, *q, *sp, *thrust, *force, thrust_max_n, thrust_max_est_n, state.t_pos, err,
             ))
             self._flush_due()
         except OSError as exc:

@@ -155,7 +155,6 @@ class Flight:
         self._background: set[asyncio.Task[None]] = set()
         self.finished = asyncio.Event()
         self.interrupted = asyncio.Event()
-        self._new_setpoint = asyncio.Event()
         self._setpoint: tuple[Setpoint | PositionTarget, float] | None = None
         """the newest setpoint to stream, and the vehicle time of the telemetry it was computed from [s]"""
         self.sent = 0
@@ -215,7 +214,6 @@ class Flight:
                         tg.create_task(self.link.run(self.finished))
                         tg.create_task(self._watchdog())
                         tg.create_task(self._control_loop())
-                        tg.create_task(self._streamer())
                         mission = tg.create_task(self._mission())
                     result, message = mission.result()
                 except* LinkLost as eg:
@@ -357,7 +355,7 @@ class Flight:
                     # stamped with the telemetry this tick flew on (lockstep lets the world run
                     # one period past it), not whatever is newest when the streamer sends it
                     self._setpoint = (tick.setpoint, state.t)
-                    self._new_setpoint.set()
+                    self._stream()
                     sent = True
                 elif tick is not None and moved:
                     self.rejected += 1
@@ -408,7 +406,8 @@ class Flight:
     async def _until_tick(self, due_stamp: float, wake: float, precise_s: float) -> None:
         """Until the vehicle's newest stamp reaches ``due_stamp`` or the wall clock reaches ``wake``."""
         state, arrived = self.link.state, self.link.telemetry_event
-        await asyncio.sleep(0)  # the reader runs first, whatever happens: a tick never starves it
+        if state.t >= due_stamp:  # due already: the reader runs first, whatever happens (a tick never starves it)
+            await asyncio.sleep(0)
         while state.t < due_stamp:
             remaining = wake - time.monotonic()
             if remaining <= precise_s:
@@ -423,35 +422,29 @@ class Flight:
                 async with asyncio.timeout(remaining - precise_s):  # no task per wait, as wait_for makes
                     await arrived.wait()
 
-    async def _streamer(self) -> None:
-        while not self.finished.is_set():
-            try:
-                async with asyncio.timeout(0.1):
-                    await self._new_setpoint.wait()
-            except TimeoutError:
-                continue
-            self._new_setpoint.clear()
-            if self._setpoint is None or not self.engaged or self.stale:
-                continue
-            sp, stamp_s = self._setpoint
-            if isinstance(sp, PositionTarget):  # in the autopilot's frame: its estimate, resets and all
-                o = self.link.state.resets.offset_ned_m
-                pos = (sp.pos_ned_m[0] + o[0], sp.pos_ned_m[1] + o[1], sp.pos_ned_m[2] + o[2])
-                self.link.send_position_target(pos, sp.vel_ned_m_s, sp.accel_ned_m_s2, sp.yaw_rad, stamp_s=stamp_s)
-            else:
-                self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust, self.output.type_mask,
-                                               stamp_s=stamp_s)
-            self.sent += 1
-            t_sent = self.link.state.t
-            if math.isnan(self._first_sent_t):
-                self._first_sent_t = t_sent
-            self._last_sent_t = t_sent
-            now = time.monotonic()
-            if math.isfinite(self._last_sent_wall):
-                self.tick_periods.append(now - self._last_sent_wall)
-                if len(self.tick_periods) > 100_000:
-                    del self.tick_periods[:50_000]
-            self._last_sent_wall = now
+    def _stream(self) -> None:
+        """The new setpoint to the vehicle, as soon as the tick has it."""
+        if self._setpoint is None or not self.engaged or self.stale:
+            return
+        sp, stamp_s = self._setpoint
+        if isinstance(sp, PositionTarget):  # in the autopilot's frame: its estimate, resets and all
+            o = self.link.state.resets.offset_ned_m
+            pos = (sp.pos_ned_m[0] + o[0], sp.pos_ned_m[1] + o[1], sp.pos_ned_m[2] + o[2])
+            self.link.send_position_target(pos, sp.vel_ned_m_s, sp.accel_ned_m_s2, sp.yaw_rad, stamp_s=stamp_s)
+        else:
+            self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust, self.output.type_mask,
+                                           stamp_s=stamp_s)
+        self.sent += 1
+        t_sent = self.link.state.t
+        if math.isnan(self._first_sent_t):
+            self._first_sent_t = t_sent
+        self._last_sent_t = t_sent
+        now = time.monotonic()
+        if math.isfinite(self._last_sent_wall):
+            self.tick_periods.append(now - self._last_sent_wall)
+            if len(self.tick_periods) > 100_000:
+                del self.tick_periods[:50_000]
+        self._last_sent_wall = now
 
     # --- waiting (used by the steps) -------------------------------------------------------
 

@@ -28,8 +28,9 @@ def _telemetry(seed: int) -> list[bytes]:
             lambda: v2.attitude_quaternion_encode(i, 1.0, *u[:6]),
             lambda: v2.local_position_ned_encode(i, *u[:6]),
             lambda: v2.highres_imu_encode(i, *u[:9], 1000.0, 0.0, 0.0, 20.0, 0xFFFF),
-            lambda: v2.heartbeat_encode(2, 12, 0, 0, 4),
-            lambda: v2.statustext_encode(4, b"x" * rng.randrange(0, 50)),
+            lambda: v2.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                                         mavlink.MAV_STATE_ACTIVE),
+            lambda: v2.statustext_encode(mavlink.MAV_SEVERITY_WARNING, b"x" * rng.randrange(0, 50)),
         ][i % 5]()
         mav = v1 if i % 7 == 0 else v2
         out.append(bytes(make.pack(mav)))
