@@ -29,13 +29,19 @@ class TickGrid:
     """vehicle time of the next tick [s]"""
     last_tick_wall: float = -math.inf
     late_ticks: int = 0
+    on_clock: bool = False
+    """the last tick fired on the clock line, its sample not yet in"""
 
     def start(self, line_now: float, newest: float) -> None:
         self.t_next = min(line_now, newest)
 
     def advance(self, newest: float) -> float:
-        """The next tick's vehicle time: one period on, never more than a period past ``newest``."""
-        self.t_next = min(self.t_next + self.period_s, newest + self.period_s)
+        """The next tick's vehicle time: one period on, never more than a period past ``newest``; after
+        a tick on the clock, two: the sample still on its way is that tick's, and must not fire the
+        next one at once (a real-time link's samples arrive a little after the clock line, and each
+        would otherwise be answered twice, 0.2 ms apart)."""
+        ahead = 2.0 if self.on_clock else 1.0
+        self.t_next = min(self.t_next + self.period_s, newest + ahead * self.period_s)
         return self.t_next
 
     def due_stamp(self) -> float:

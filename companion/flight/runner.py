@@ -334,7 +334,8 @@ class Flight:
                 t_next = grid.t_next
                 wake = clock.wall_at(t_next)
             # block at most a quarter of a tick: sped up, a tick is only a few ms of wall time
-            await self._until_tick(grid.due_stamp(), wake, min(PRECISE_SLEEP_S, 0.25 * grid.period_s / clock.rate))
+            grid.on_clock = await self._until_tick(grid.due_stamp(), wake,
+                                                   min(PRECISE_SLEEP_S, 0.25 * grid.period_s / clock.rate))
             tick_wall = time.monotonic()
             grid.ticked(tick_wall, clock.now(tick_wall), state.t)
             t_next = grid.t_next
@@ -403,8 +404,9 @@ class Flight:
         self.link.send_debug(t, {k: v for k, v in vectors.items() if all(math.isfinite(c) for c in v)},
                              {k: v for k, v in values.items() if math.isfinite(v)})
 
-    async def _until_tick(self, due_stamp: float, wake: float, precise_s: float) -> None:
-        """Until the vehicle's newest stamp reaches ``due_stamp`` or the wall clock reaches ``wake``."""
+    async def _until_tick(self, due_stamp: float, wake: float, precise_s: float) -> bool:
+        """Until the vehicle's newest stamp reaches ``due_stamp`` or the wall clock reaches ``wake``:
+        whether it was the clock."""
         state, arrived = self.link.state, self.link.telemetry_event
         if state.t >= due_stamp:  # due already: the reader runs first, whatever happens (a tick never starves it)
             await asyncio.sleep(0)
@@ -414,13 +416,14 @@ class Flight:
                 if remaining > 0:
                     time.sleep(remaining)
                 self.ticks_on_clock += 1
-                return
+                return True
             arrived.clear()
             if state.t >= due_stamp:
-                return
+                return False
             with contextlib.suppress(TimeoutError):
                 async with asyncio.timeout(remaining - precise_s):  # no task per wait, as wait_for makes
                     await arrived.wait()
+        return False
 
     def _stream(self) -> None:
         """The new setpoint to the vehicle, as soon as the tick has it."""
