@@ -37,10 +37,10 @@ class TickGrid:
 
     def advance(self, newest: float) -> float:
         """The next tick's vehicle time: one period on, never more than a period past ``newest``; after
-        a tick on the clock, two: the sample still on its way is that tick's, and must not fire the
-        next one at once (a real-time link's samples arrive a little after the clock line, and each
-        would otherwise be answered twice, 0.2 ms apart)."""
-        ahead = 2.0 if self.on_clock else 1.0
+        a tick on the clock, up to RESYNC_TICKS periods past it: a sample still on its way, or one
+        of a stream slower than the loop, belongs to a tick already made and must not fire the next
+        one at once (each would otherwise be answered twice, 0.2 ms apart)."""
+        ahead = RESYNC_TICKS if self.on_clock else 1
         self.t_next = min(self.t_next + self.period_s, newest + ahead * self.period_s)
         return self.t_next
 

@@ -3,7 +3,7 @@
 import math
 
 from companion.flight import supervisor as sv
-from companion.flight.pacing import TickGrid
+from companion.flight.pacing import RESYNC_TICKS, TickGrid
 from companion.flight.runner import wall_timeout_s
 
 LIM = sv.Limits(telemetry_timeout_s=0.3, stale_hold_s=1.0, link_lost_s=3.0)
@@ -132,7 +132,23 @@ def test_a_sample_arriving_after_its_tick_fired_on_the_clock_does_not_fire_the_n
     assert 10.0095 < g.due_stamp()  # the late sample does not fire it
     g.on_clock = False  # with samples: never more than a tick past the newest
     assert math.isclose(g.advance(newest=10.0095), 10.0195)
-    g.on_clock = True  # samples gone for long: the grid waits at most two ticks past the newest
+    g.on_clock = True  # samples gone for long: the grid waits at most RESYNC_TICKS past the newest
     for _ in range(50):
         g.advance(newest=10.0095)
-    assert math.isclose(g.t_next, 10.0295)
+    assert math.isclose(g.t_next, 10.0095 + RESYNC_TICKS * 0.01)
+
+
+def test_a_stream_slower_than_the_loop_fires_only_the_ticks_it_is_the_sample_of():
+    """250 Hz on samples every 10 ms: the clock makes the ticks in between; a sample fires a tick
+    only when it is that tick's (within a tenth of a period), so the loop keeps its rate."""
+    g = TickGrid(0.004)
+    g.start(line_now=0.0, newest=0.0)
+    newest, fired = 0.0, 0
+    for k in range(1, 251):  # one second on the clock line
+        t = g.advance(newest)
+        sample = 0.01 * int(round(4 * k) // 10)  # the newest 100 Hz sample at the line's time 4k ms
+        g.on_clock = sample < g.due_stamp()
+        fired += not g.on_clock
+        newest = sample
+        assert math.isclose(t, 0.004 * k)  # one period per tick, whichever fired it
+    assert 40 <= fired <= 60  # every other sample or so falls on a tick's own time
