@@ -162,7 +162,7 @@ def where(cond: bool | NDArray[np.bool_], a: Real, b: Real) -> Real:
 @float_form(lambda x: float(round(x)))
 def rint(x: Real) -> Real:
     """The nearest integer (halves to even), as a float."""
-    return np.rint(x) if type(x) is _ndarray else float(round(x))
+    return np.rint(x) if type(x) is _ndarray else float(round(float(x)))  # type: ignore[arg-type]
 
 
 @float_form(lambda cond: cond)

@@ -24,14 +24,18 @@ def _telemetry(seed: int) -> list[bytes]:
     out = []
     for i in range(60):
         u = [rng.uniform(-10, 10) for _ in range(9)]
-        make = [
-            lambda: v2.attitude_quaternion_encode(i, 1.0, *u[:6]),
-            lambda: v2.local_position_ned_encode(i, *u[:6]),
-            lambda: v2.highres_imu_encode(i, *u[:9], 1000.0, 0.0, 0.0, 20.0, 0xFFFF),
-            lambda: v2.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
-                                         mavlink.MAV_STATE_ACTIVE),
-            lambda: v2.statustext_encode(mavlink.MAV_SEVERITY_WARNING, b"x" * rng.randrange(0, 50)),
-        ][i % 5]()
+        kind = i % 5
+        if kind == 0:
+            make = v2.attitude_quaternion_encode(i, 1.0, *u[:6])
+        elif kind == 1:
+            make = v2.local_position_ned_encode(i, *u[:6])
+        elif kind == 2:
+            make = v2.highres_imu_encode(i, *u[:9], 1000.0, 0.0, 0.0, 20.0, 0xFFFF)
+        elif kind == 3:
+            make = v2.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, 0, 0,
+                                       mavlink.MAV_STATE_ACTIVE)
+        else:
+            make = v2.statustext_encode(mavlink.MAV_SEVERITY_WARNING, b"x" * rng.randrange(0, 50))
         mav = v1 if i % 7 == 0 else v2
         out.append(bytes(make.pack(mav)))
     return out
