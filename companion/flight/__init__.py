@@ -1,6 +1,6 @@
 """A flight of the companion: the runner and its parts.
 
-- :mod:`.runner` — :class:`Flight`: the tasks (reader, control loop, streamer, watchdog, mission);
+- :mod:`.runner` — :class:`Flight`: the tasks (reader, control loop, watchdog, mission);
 - :mod:`.supervisor` — the judge: pure decisions from what was seen and the clock;
 - :mod:`.pacing` — when the control loop ticks; :mod:`.control_time` — the controller's own time;
 - :mod:`.steps` — what each kind of mission step does; :mod:`.prepare` — thrust scale and the

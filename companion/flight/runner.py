@@ -1,10 +1,9 @@
-"""A flight: link, control loop, streamer, watchdog and mission under one TaskGroup.
+"""A flight: link, control loop, watchdog and mission under one TaskGroup.
 
 - **reader** (``link.run``): telemetry into :class:`~companion.link.state.VehicleState`, heartbeats out;
 - **control loop**: a fixed rate in vehicle time, ticked by the telemetry's samples
-  (:mod:`.pacing`); computes a checked setpoint while the controller is engaged and records a row
-  every tick;
-- **streamer**: sends each new setpoint the moment it exists (and nothing stale);
+  (:mod:`.pacing`); computes a checked setpoint while the controller is engaged, sends it the
+  moment it exists (and nothing stale), and records a row every tick;
 - **watchdog**: samples the link every 20 ms and carries out what the judge
   (:mod:`.supervisor`) decides: pause setpoints on stale telemetry, command hold, end the flight
   when the link is lost or the vehicle leaves its safety volume;
@@ -354,7 +353,7 @@ class Flight:
                 tick, moved = self.control.update(state, t_next)
                 if tick is not None and tick.rejected is None:
                     # stamped with the telemetry this tick flew on (lockstep lets the world run
-                    # one period past it), not whatever is newest when the streamer sends it
+                    # one period past it), not whatever is newest when it is sent
                     self._setpoint = (tick.setpoint, state.t)
                     self._stream()
                     sent = True

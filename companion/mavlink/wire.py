@@ -84,8 +84,6 @@ def _clean_frames(parser: mavlink.MAVLink, data: bytes) -> list[Any] | None:
             msg = parser.decode(bytearray(frame))
         except Exception:  # noqa: BLE001 - the robust parser counts it
             return None
-        if msg.get_type() == "BAD_DATA":
-            return None
         messages.append(msg)
     parser.total_bytes_received += len(data)
     parser.total_packets_received += len(messages)
