@@ -29,19 +29,13 @@ class TickGrid:
     """vehicle time of the next tick [s]"""
     last_tick_wall: float = -math.inf
     late_ticks: int = 0
-    on_clock: bool = False
-    """the last tick fired on the clock line, its sample not yet in"""
 
     def start(self, line_now: float, newest: float) -> None:
         self.t_next = min(line_now, newest)
 
     def advance(self, newest: float) -> float:
-        """The next tick's vehicle time: one period on, never more than a period past ``newest``; after
-        a tick on the clock, up to RESYNC_TICKS periods past it: a sample still on its way, or one
-        of a stream slower than the loop, belongs to a tick already made and must not fire the next
-        one at once (each would otherwise be answered twice, 0.2 ms apart)."""
-        ahead = RESYNC_TICKS if self.on_clock else 1
-        self.t_next = min(self.t_next + self.period_s, newest + ahead * self.period_s)
+        """The next tick's vehicle time: one period on, never more than a period past ``newest``."""
+        self.t_next = min(self.t_next + self.period_s, newest + self.period_s)
         return self.t_next
 
     def due_stamp(self) -> float:

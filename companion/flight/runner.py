@@ -333,8 +333,7 @@ class Flight:
                 t_next = grid.t_next
                 wake = clock.wall_at(t_next)
             # block at most a quarter of a tick: sped up, a tick is only a few ms of wall time
-            grid.on_clock = await self._until_tick(grid.due_stamp(), wake,
-                                                   min(PRECISE_SLEEP_S, 0.25 * grid.period_s / clock.rate))
+            await self._until_tick(grid.due_stamp(), wake, min(PRECISE_SLEEP_S, 0.25 * grid.period_s / clock.rate))
             tick_wall = time.monotonic()
             grid.ticked(tick_wall, clock.now(tick_wall), state.t)
             t_next = grid.t_next

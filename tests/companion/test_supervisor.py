@@ -3,7 +3,7 @@
 import math
 
 from companion.flight import supervisor as sv
-from companion.flight.pacing import RESYNC_TICKS, TickGrid
+from companion.flight.pacing import TickGrid
 from companion.flight.runner import wall_timeout_s
 
 LIM = sv.Limits(telemetry_timeout_s=0.3, stale_hold_s=1.0, link_lost_s=3.0)
@@ -116,39 +116,3 @@ def test_the_tick_grid_follows_the_stamps_and_falls_back_at_the_rate():
     assert g.fallback_wall(line_wall=4.0, rate=2.0) == 5.0 + 0.01 / 2.0
     g.ticked(now_wall=6.0, line_now=10.2, newest=10.005)
     assert g.late_ticks == 1 and math.isclose(g.t_next, 10.015)
-
-
-def test_a_sample_arriving_after_its_tick_fired_on_the_clock_does_not_fire_the_next_at_once():
-    """Real time: the tick for 10.01 fires on the clock line 1.5 ms before its sample (stamped
-    10.0095) arrives. That sample is the tick's own; the next tick is due at ~10.02, not the
-    moment it arrives (which answered it twice, 0.2 ms apart: 22 % of the setpoints of a 1x hold
-    at 100 Hz were such repeats, bench_companion "achieved" 134 Hz)."""
-    g = TickGrid(0.01)
-    g.start(line_now=10.0, newest=10.0)
-    g.advance(newest=10.0)  # the tick for 10.01
-    g.on_clock = True  # it fired on the clock; the newest sample was still 10.0
-    nxt = g.advance(newest=10.0)
-    assert math.isclose(nxt, 10.02)
-    assert 10.0095 < g.due_stamp()  # the late sample does not fire it
-    g.on_clock = False  # with samples: never more than a tick past the newest
-    assert math.isclose(g.advance(newest=10.0095), 10.0195)
-    g.on_clock = True  # samples gone for long: the grid waits at most RESYNC_TICKS past the newest
-    for _ in range(50):
-        g.advance(newest=10.0095)
-    assert math.isclose(g.t_next, 10.0095 + RESYNC_TICKS * 0.01)
-
-
-def test_a_stream_slower_than_the_loop_fires_only_the_ticks_it_is_the_sample_of():
-    """250 Hz on samples every 10 ms: the clock makes the ticks in between; a sample fires a tick
-    only when it is that tick's (within a tenth of a period), so the loop keeps its rate."""
-    g = TickGrid(0.004)
-    g.start(line_now=0.0, newest=0.0)
-    newest, fired = 0.0, 0
-    for k in range(1, 251):  # one second on the clock line
-        t = g.advance(newest)
-        sample = 0.01 * int(round(4 * k) // 10)  # the newest 100 Hz sample at the line's time 4k ms
-        g.on_clock = sample < g.due_stamp()
-        fired += not g.on_clock
-        newest = sample
-        assert math.isclose(t, 0.004 * k)  # one period per tick, whichever fired it
-    assert 40 <= fired <= 60  # every other sample or so falls on a tick's own time
