@@ -279,8 +279,10 @@ class Autopilot:
 
     @property
     def follows_stream(self) -> bool:
-        """Flying a companion's setpoint stream: OFFBOARD, or GUIDED flying attitude targets."""
-        return self.mode == Mode.OFFBOARD or (self.mode == Mode.GUIDED and self._guided_flying)
+        """Flying a companion's setpoint stream: armed, in OFFBOARD, or in GUIDED flying attitude
+        targets. (Disarmed after a landing, PX4 is back in OFFBOARD with no one streaming: a world
+        in lockstep must not wait for setpoints there.)"""
+        return self.armed and (self.mode == Mode.OFFBOARD or (self.mode == Mode.GUIDED and self._guided_flying))
 
     # --- events --------------------------------------------------------------------------
 

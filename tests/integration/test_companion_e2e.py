@@ -62,6 +62,9 @@ def test_waypoint_mission_tracks_the_reference(sitl, companion):
     assert 1.8 < np.nanmax(speed) < 2.6  # flew at the reference's 2 m/s
     report = s.stop()
     assert not report["armed"]  # landed and disarmed
+    # disarmed after the landing (PX4 is back in OFFBOARD, no one streams) the world did not wait
+    # for setpoints: it gave up on none, and waited at most what one answer takes on a busy host
+    assert report["stats"].get("lockstep_gave_up", 0) == 0 and report["longest_wait_ms"] < 500, report
     # the raw traffic is a .tlog that pymavlink reads back: every setpoint sent, every command acked
     from pymavlink import mavutil
 
