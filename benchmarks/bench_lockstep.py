@@ -6,10 +6,10 @@
 
 The companion (this process) flies the mission against ``sitl --flavour paper --lockstep`` (the
 world advances 10 ms per setpoint) with the speed-up capped at 1000, so only the two processes
-limit it. Per flight: simulated seconds over wall seconds (what a user sees), and each process's
-CPU seconds per simulated second. The vehicle's *capacity* is the inverse of its CPU per
-simulated second: how fast it would fly behind a companion that costs nothing, on another core
-[issue 15: the bundled MAVLink vehicle >= 50x sustained in lockstep].
+limit it. Per flight: simulated seconds (the vehicle's time from its boot to the end of the
+flight) over wall seconds (what a user sees), and each process's CPU seconds per simulated
+second. The vehicle's *capacity* is the inverse of its CPU per simulated second: how fast it
+would fly behind a companion that costs nothing, on another core [issue 15: the bundled MAVLink vehicle >= 50x sustained in lockstep].
 
 ``--pieces`` flies once more with the companion's pieces timed in place (CPU time of each call,
 ``time.process_time``): parse (datagrams to messages), state (messages into the vehicle state),
@@ -116,14 +116,15 @@ def fly_once(out: Path, profile: Path | None) -> dict[str, float]:
     try:
         opts = FlightOptions(connect=f"udp://{vehicle.url}", controller="ism_do", out_dir=out,
                              output="attitude_rates", mission_file=MISSION)
+        flight = Flight(load_mission(MISSION), opts)
         with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):  # the flight's own report
-            code = asyncio.run(run_flight(Flight(load_mission(MISSION), opts), plots=False))
+            code = asyncio.run(run_flight(flight, plots=False))
         wall = time.monotonic() - w0
         self_cpu = _cpu(resource.RUSAGE_SELF) - self0
     finally:
-        report = vehicle.stop()
+        vehicle.stop()
     vehicle_cpu = _cpu(resource.RUSAGE_CHILDREN) - child0
-    sim = float(report["t"])
+    sim = flight.link.state.t  # the vehicle's time when the flight ended (its clock starts at boot)
     if code != 0:
         raise SystemExit(f"the flight ended with exit {code}")
     return {"sim_s": sim, "wall_s": wall, "speedup": sim / wall, "vehicle_cpu_per_sim_s": vehicle_cpu / sim,

@@ -160,6 +160,14 @@ class Flight:
         self.rejected = 0
         self.grid = TickGrid(1.0 / self.rate_hz)
         self.ticks_on_clock = 0
+        self._timer: asyncio.Handle | None = None
+        """the next tick's: the clock line's timer, or a tick due soon (its sample is in)"""
+        self._wake = math.inf
+        """wall time at which the next tick fires on the clock line"""
+        self._tick_soon = False
+        """the next tick's sample is in: it fires when the reader has run (not on the clock)"""
+        self._ticks_failed: asyncio.Future[None] | None = None
+        """a tick's error, carried into the flight's task group"""
         """ticks fired by the clock line because the sample for them had not arrived"""
         self.output = choose_output(opt.output, "px4")
         """what SET_ATTITUDE_TARGET carries (output.py); chosen again once the autopilot is known"""
@@ -321,56 +329,116 @@ class Flight:
         return volume.breach(self.link.state.pos_ned_m)  # type: ignore[no-any-return]
 
     async def _control_loop(self) -> None:
-        clock, state, grid = self.link.clock, self.link.state, self.grid
+        """Tick until the flight ends. A tick is plain code run where its cause is: by the reader
+        once the sample for it is in (:meth:`_on_telemetry`: no task to wake), or by a timer on the
+        clock line when the sample is missing (:meth:`_on_clock`). This task only starts the grid
+        and carries a tick's error into the flight's task group."""
+        clock, state = self.link.clock, self.link.state
         while not clock.ready and not self.finished.is_set():
             await asyncio.sleep(0.01)
-        grid.start(clock.now(time.monotonic()), state.t)
-        while not self.finished.is_set():
-            t_next = grid.advance(state.t)
-            now = time.monotonic()
-            wake = grid.fallback_wall(clock.wall_at(t_next), clock.rate)
-            if grid.rebase_if_line_moved_back(wake, now, clock.rate, clock.now(now), state.t):
-                t_next = grid.t_next
-                wake = clock.wall_at(t_next)
-            # block at most a quarter of a tick: sped up, a tick is only a few ms of wall time
-            await self._until_tick(grid.due_stamp(), wake, min(PRECISE_SLEEP_S, 0.25 * grid.period_s / clock.rate))
-            tick_wall = time.monotonic()
-            grid.ticked(tick_wall, clock.now(tick_wall), state.t)
-            t_next = grid.t_next
-            tick, sent = None, False
-            self._note_resets()
-            if self.engaged and self.expect_offboard and self._breach is None and not self.stale:
-                self.watch, breach = supervisor.judge_breach(self.watch, self._volume_breach())
-                if breach:  # no setpoint after it: the mission ends, hold then land (until())
-                    self._breach = breach
-                    self.log(f"{breach}: holding, then landing")
-            if (self.engaged and self.control is not None and state.has_navigation and not self.stale
-                    and self._breach is None):
-                self.health.observe_age(t_next - min(state.t_pos, state.t_att))
-                # the controller's own time follows the telemetry's stamps, not just this line:
-                # a tick with no new vehicle time to step re-sends the last setpoint
-                tick, moved = self.control.update(state, t_next)
-                if tick is not None and tick.rejected is None:
-                    # stamped with the telemetry this tick flew on (lockstep lets the world run
-                    # one period past it), not whatever is newest when it is sent
-                    self._setpoint = (tick.setpoint, state.t)
-                    self._stream()
-                    sent = True
-                elif tick is not None and moved:
-                    self.rejected += 1
-                    self.log(f"setpoint rejected: {tick.rejected}")
-            thrust = self.control.thrust if self.control else None
-            self.recorder.row(state, tick, sent,
-                              thrust.thrust_max_n if thrust else math.nan,
-                              thrust.estimated_thrust_max_n if thrust else math.nan)
-            if tick is not None and t_next >= self._debug_due:
-                self._debug_due = t_next + DEBUG_PERIOD_S
-                self._send_debug(tick, t_next)
-            health = self.health.sample(t_next, self.link.stats["received"], self.sent, self.link.rx_queue_depth,
-                                        grid.late_ticks, self.link.rx_lag_max_s)
-            if health is not None:
-                self.link.take_rx_lag_max()
-                self.recorder.health(health)
+        if self.finished.is_set():
+            return
+        self.grid.start(clock.now(time.monotonic()), state.t)
+        self._ticks_failed = asyncio.get_running_loop().create_future()
+        self.link.on_telemetry = self._on_telemetry
+        self._arm()
+        ended = asyncio.ensure_future(self.finished.wait())
+        try:
+            await asyncio.wait((ended, self._ticks_failed), return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            self.link.on_telemetry = None
+            if self._timer is not None:
+                self._timer.cancel()
+                self._timer = None
+            ended.cancel()
+        error = self._ticks_failed.exception() if self._ticks_failed.done() else None
+        if error is not None:
+            raise error
+
+    def _arm(self) -> None:
+        """Move the grid to the next tick: fire it soon if its sample is in (the reader runs first,
+        so a tick never starves it), else arm the clock line's timer for when it is missing."""
+        clock, state, grid = self.link.clock, self.link.state, self.grid
+        loop = asyncio.get_running_loop()
+        self._wake = grid.next_tick(clock, state.t, time.monotonic())
+        self._tick_soon = grid.fires_on(state.t)
+        if self._tick_soon:
+            self._timer = loop.call_soon(self._fire, False)
+        else:
+            # the event loop's timers fire up to a ms late. Where the clock line fires every tick (a
+            # stream slower than the loop) the last of it is slept, blocking: at most a quarter of a
+            # tick (sped up, a tick is a few ms of wall time). Where a sample is awaited, never: a
+            # sample arriving meanwhile would go unread, and its tick fire without it.
+            precise_s = 0.0 if grid.led_by_samples else min(PRECISE_SLEEP_S, 0.25 * grid.period_s / clock.rate)
+            self._timer = loop.call_at(self._wake - precise_s, self._on_clock)
+
+    def _on_telemetry(self) -> None:
+        """The reader took in a believed stamp: fire the tick it was waiting for."""
+        timer = self._timer
+        if timer is not None and not self._tick_soon and self.grid.fires_on(self.link.state.t):
+            timer.cancel()
+            self._fire(False)
+
+    def _on_clock(self) -> None:
+        """The clock line reached the tick (less the precise sleep) without its sample."""
+        remaining = self._wake - time.monotonic()
+        if remaining > 0:
+            time.sleep(remaining)  # the last ms or so: the event loop's timers are coarser
+        self.ticks_on_clock += 1
+        self._fire(True)
+
+    def _fire(self, on_clock: bool) -> None:
+        self._timer = None
+        failed = self._ticks_failed
+        if self.finished.is_set() or failed is None or failed.done():
+            return
+        try:
+            self._tick(on_clock)
+            self._arm()
+        except Exception as exc:  # ends the flight as the control task's own error would
+            failed.set_exception(exc)
+
+    def _tick(self, on_clock: bool) -> None:
+        """One tick: the supervisor's judgement, the controller's step, the setpoint sent, the
+        flight's row, the debug values and the health sample."""
+        clock, state, grid = self.link.clock, self.link.state, self.grid
+        tick_wall = time.monotonic()
+        grid.ticked(tick_wall, clock.now(tick_wall), state.t, on_clock)
+        t_next = grid.t_next
+        tick, sent = None, False
+        self._note_resets()
+        if self.engaged and self.expect_offboard and self._breach is None and not self.stale:
+            self.watch, breach = supervisor.judge_breach(self.watch, self._volume_breach())
+            if breach:  # no setpoint after it: the mission ends, hold then land (until())
+                self._breach = breach
+                self.log(f"{breach}: holding, then landing")
+        if (self.engaged and self.control is not None and state.has_navigation and not self.stale
+                and self._breach is None):
+            self.health.observe_age(t_next - min(state.t_pos, state.t_att))
+            # the controller's own time follows the telemetry's stamps, not just this line:
+            # a tick with no new vehicle time to step re-sends the last setpoint
+            tick, moved = self.control.update(state, t_next)
+            if tick is not None and tick.rejected is None:
+                # stamped with the telemetry this tick flew on (lockstep lets the world run
+                # one period past it), not whatever is newest when it is sent
+                self._setpoint = (tick.setpoint, state.t)
+                self._stream()
+                sent = True
+            elif tick is not None and moved:
+                self.rejected += 1
+                self.log(f"setpoint rejected: {tick.rejected}")
+        thrust = self.control.thrust if self.control else None
+        self.recorder.row(state, tick, sent,
+                          thrust.thrust_max_n if thrust else math.nan,
+                          thrust.estimated_thrust_max_n if thrust else math.nan)
+        if tick is not None and t_next >= self._debug_due:
+            self._debug_due = t_next + DEBUG_PERIOD_S
+            self._send_debug(tick, t_next)
+        health = self.health.sample(t_next, self.link.stats["received"], self.sent, self.link.rx_queue_depth,
+                                    grid.late_ticks, self.link.rx_lag_max_s)
+        if health is not None:
+            self.link.take_rx_lag_max()
+            self.recorder.health(health)
 
     def _note_resets(self) -> None:
         """Log each estimator reset the link found (link/resets.py), count it in its segment, and
@@ -401,27 +469,6 @@ class Flight:
         values = {"err_m": err, "thr_scale": self.control.thrust.thrust_max_n if self.control else math.nan}
         self.link.send_debug(t, {k: v for k, v in vectors.items() if all(math.isfinite(c) for c in v)},
                              {k: v for k, v in values.items() if math.isfinite(v)})
-
-    async def _until_tick(self, due_stamp: float, wake: float, precise_s: float) -> bool:
-        """Until the vehicle's newest stamp reaches ``due_stamp`` or the wall clock reaches ``wake``:
-        whether it was the clock."""
-        state, arrived = self.link.state, self.link.telemetry_event
-        if state.t >= due_stamp:  # due already: the reader runs first, whatever happens (a tick never starves it)
-            await asyncio.sleep(0)
-        while state.t < due_stamp:
-            remaining = wake - time.monotonic()
-            if remaining <= precise_s:
-                if remaining > 0:
-                    time.sleep(remaining)
-                self.ticks_on_clock += 1
-                return True
-            arrived.clear()
-            if state.t >= due_stamp:
-                return False
-            with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(remaining - precise_s):  # no task per wait, as wait_for makes
-                    await arrived.wait()
-        return False
 
     def _stream(self) -> None:
         """The new setpoint to the vehicle, as soon as the tick has it."""

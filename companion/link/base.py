@@ -102,7 +102,7 @@ class VehicleLink(abc.ABC):
         self.flavour = None
         self.stats = Counter()
         self.gate = StampGate(counts=self.stats)
-        self.telemetry_event = asyncio.Event()
+        self.on_telemetry: Callable[[], None] | None = None
 
     def _sample(self, stamp_s: float, wall: float, store: Callable[..., bool], *values: object,
                 wraps: bool = False) -> bool:
@@ -130,13 +130,31 @@ class VehicleLink(abc.ABC):
             self.state.restart_time()
         return admitted
 
-    telemetry_event: asyncio.Event
-    """set whenever a believed stamp arrives (the control loop ticks on it: lockstep)"""
+    on_telemetry: Callable[[], None] | None
+    """called when a believed stamp has come in, once the state holds everything that came with it
+    (the control loop's tick for that sample runs in it: lockstep)"""
 
     def _observe(self, admitted: Admitted, wall: float) -> None:
         if admitted.feeds_clock:
             self.clock.observe(admitted.t_s, wall)
-            self.telemetry_event.set()
+            self._telemetry_in()
+
+    _fresh = False
+    """a believed stamp came in since the control loop was last told"""
+
+    def _telemetry_in(self) -> None:
+        """A believed stamp came in: tell the control loop once the samples that are ready with
+        it have been stored too (the event loop's next round; the pymavlink backend tells it
+        itself when it has read its queue)."""
+        if self._fresh or self.on_telemetry is None:
+            return
+        self._fresh = True
+        asyncio.get_running_loop().call_soon(self._tell)
+
+    def _tell(self) -> None:
+        self._fresh = False
+        if self.on_telemetry is not None:
+            self.on_telemetry()
 
     params_complete: bool = False
     """the autopilot's whole parameter list has arrived (PARAM_VALUE's count reached)"""

@@ -12,6 +12,8 @@ Cost stays constant per packet however fast telemetry arrives: one sample is kep
 wall time (the least delayed of that bin), the anchor is updated as packets come, and the rate
 is refitted at most ten times a second. After 50 ms without a sample the line is re-anchored on
 the next one: a paused (simulated) vehicle resumes behind the old line, a link outage on it.
+How late samples arrive after the line is kept as well (the latest arrival, forgotten by 5 % a
+sample): it tells the control loop how long to wait for a sample before it ticks without it.
 Stamps reach it only through :class:`~companion.link.stamps.StampGate` (no jumps, no other time
 base). A sample that repeats the newest stamp after such a silence says the vehicle's clock stood still
 (a simulated vehicle waiting for this process, see ``sitl --wait-for-setpoints``): the line is
@@ -32,6 +34,8 @@ BIN_S = 0.01
 REFIT_S = 0.1
 SILENCE_S = 0.05
 """wall seconds without a timestamped sample after which the clock line is re-anchored"""
+LATE_DECAY = 0.95
+"""per sample: how much of the latest lateness is still expected"""
 
 
 class VehicleClock:
@@ -43,6 +47,7 @@ class VehicleClock:
         self._newest: tuple[float, float] | None = None
         self._anchor: tuple[float, float] | None = None
         self._last_fit = -math.inf
+        self._lateness = 0.0
 
     def reset(self) -> None:
         """Forget the line: the vehicle's time base changed (it restarted). Only the stamp gate
@@ -51,6 +56,7 @@ class VehicleClock:
         self._newest = self._anchor = None
         self._rate = 1.0
         self._last_fit = -math.inf
+        self._lateness = 0.0
 
     @property
     def ready(self) -> bool:
@@ -85,6 +91,8 @@ class VehicleClock:
             while len(s) > 2 and wall_t - s[0][1] > self.window_s:
                 s.popleft()
         a = self._anchor
+        if a is not None:
+            self._lateness = max(wall_t - a[1] - (vehicle_t - a[0]) / self._rate, LATE_DECAY * self._lateness)
         if a is None or wall_t - a[1] > self.anchor_window_s or self._delay(sample) <= self._delay(a):
             self._anchor = sample if a is None or self._delay(sample) <= self._delay(a) else self._best_recent()
 
@@ -120,6 +128,11 @@ class VehicleClock:
         """Vehicle seconds per wall second."""
         self._anchor_now()
         return self._rate
+
+    @property
+    def lateness_s(self) -> float:
+        """How long after the line the recent samples arrived, the latest counted most [wall s]."""
+        return self._lateness
 
     def now(self, wall_t: float) -> float:
         """Vehicle time at wall time ``wall_t`` (from the clock line, not the newest packet)."""

@@ -211,11 +211,16 @@ class PymavlinkLink(VehicleLink):
                 if lag > self.rx_lag_max_s:
                     self.rx_lag_max_s = lag
                 item = queue.get_nowait() if not queue.empty() else None
+            if self._fresh:  # the tick for what came in runs now, on the whole of it
+                self._tell()
             now = time.monotonic()
             if now >= heartbeat_next:
                 self._send(self.mav.heartbeat_encode(mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
                                                      mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
                 heartbeat_next = now + 1.0
+
+    def _telemetry_in(self) -> None:
+        self._fresh = True  # told once the queue is read (run): a datagram carries several frames
 
     def _parse(self, data: bytes, wall: float, addr: tuple[str, int] | None = None) -> None:
         parsed = parse_datagram(self.parser, data)
