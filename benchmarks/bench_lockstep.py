@@ -9,7 +9,8 @@ world advances 10 ms per setpoint) with the speed-up capped at 1000, so only the
 limit it. Per flight: simulated seconds (the vehicle's time from its boot to the end of the
 flight) over wall seconds (what a user sees), and each process's CPU seconds per simulated
 second. The vehicle's *capacity* is the inverse of its CPU per simulated second: how fast it
-would fly behind a companion that costs nothing, on another core [issue 15: the bundled MAVLink vehicle >= 50x sustained in lockstep].
+would fly behind a companion that costs nothing, on another core [issue 15: the bundled MAVLink
+vehicle >= 50x sustained in lockstep].
 
 ``--pieces`` flies once more with the companion's pieces timed in place (CPU time of each call,
 ``time.process_time``): parse (datagrams to messages), state (messages into the vehicle state),

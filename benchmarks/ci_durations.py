@@ -2,18 +2,24 @@
 
     (time bash .ci/run) 2>&1 | tee ci.log
     python benchmarks/ci_durations.py ci.log
+    python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
 ``make test`` prints three pytest summaries in order: everything but the firmware, then PX4's tier,
 then ArduPilot's (docs/autopilots.md). This prints each one's count and wall time and, where the
-log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run.
+log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run. ``--readme`` replaces
+the sentence between README's ``<!-- ci-durations -->`` markers with them, so that no duration in
+the README is typed by hand.
 """
 
 from __future__ import annotations
 
+import argparse
 import re
 import sys
+import time
 from pathlib import Path
 
+MARKERS = ("<!-- ci-durations -->", "<!-- /ci-durations -->")
 SUMMARY = re.compile(r"^=*\s*(?:(\d+) failed, )?(\d+) passed.*? in ([\d.]+)s")
 TOTAL = re.compile(r"^(?:real\s+(\d+)m([\d.]+)s|EXIT \d+ after (\d+) s)")
 
@@ -31,11 +37,32 @@ def durations(text: str) -> tuple[list[tuple[int, int, float]], float | None]:
     return runs, total
 
 
+def sentence(runs: list[tuple[int, int, float]], total: float, commit: str, date: str) -> str:
+    """README's words for one fresh-clone run (three summaries, the whole run)."""
+    (_, main, main_s), (_, px4, px4_s), (_, ap, ap_s) = runs
+    return (f"From a fresh clone with both builds found (no pip cache, no compiled-kernel cache; "
+            f"`.ci/run`, {date}, commit {commit}): {total / 60:.1f} minutes in all ({total:.0f} s) — install "
+            f"and lint, {main} tests in {main_s:.0f} s, then {px4} PX4 tests in {px4_s:.0f} s, then {ap} "
+            f"ArduPilot tests in {ap_s:.0f} s.")
+
+
+def write_readme(readme: Path, text: str) -> None:
+    """``text`` between README's markers (whatever was there goes)."""
+    doc = readme.read_text()
+    start, end = doc.find(MARKERS[0]), doc.find(MARKERS[1])
+    if start < 0 or end < start:
+        raise SystemExit(f"{readme}: no {MARKERS[0]} ... {MARKERS[1]} to write between")
+    readme.write_text(doc[:start + len(MARKERS[0])] + "\n" + text + "\n" + doc[end:])
+
+
 def main(argv: list[str]) -> int:
-    if len(argv) != 1:
-        print(__doc__, file=sys.stderr)
-        return 2
-    runs, total = durations(Path(argv[0]).read_text(errors="replace"))
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("log", type=Path)
+    ap.add_argument("--readme", type=Path, help="write the durations between this file's markers")
+    ap.add_argument("--commit", default="?", help="the commit the run tested (README states it)")
+    ap.add_argument("--date", default=time.strftime("%Y-%m-%d", time.gmtime()))
+    args = ap.parse_args(argv)
+    runs, total = durations(args.log.read_text(errors="replace"))
     names = ["everything but the firmware", "PX4's tier", "ArduPilot's tier"]
     for name, (failed, passed, seconds) in zip(names, runs):
         print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")
@@ -44,6 +71,11 @@ def main(argv: list[str]) -> int:
               f"{max(runs[1][2], runs[2][2]):.0f} s if side by side")
     if total is not None:
         print(f"in all: {total:.0f} s ({total / 60:.1f} minutes)")
+    if args.readme is not None:
+        if len(runs) != 3 or total is None or any(failed for failed, _, _ in runs):
+            raise SystemExit("--readme: the log must hold three passing summaries and the whole run's time")
+        write_readme(args.readme, sentence(runs, total, args.commit, args.date))
+        print(f"written to {args.readme}")
     return 0
 
 
