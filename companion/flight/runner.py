@@ -42,6 +42,7 @@ from .health import HealthMonitor
 from .offboard import OffboardController, PositionTarget, Setpoint, Tick
 from .output import choose_output
 from .pacing import TickGrid
+from .ticker import Ticker
 from .prepare import RESTORE_WITHIN_S, ParamChanges, prepare_ardupilot, thrust_scale
 from .recorder import FlightRecorder, strict_json
 from .silence import AwakeSilence
@@ -50,7 +51,6 @@ from .thrust_scale import ThrustScaleEstimator
 
 __all__ = ["FlightOptions", "FlightResult", "Flight", "wall_timeout_s"]
 
-PRECISE_SLEEP_S = 0.0015
 DEBUG_PERIOD_S = 0.1
 """vehicle seconds between the controller-state messages for the ground station (10 Hz)"""
 WATCHDOG_S = 0.02
@@ -159,15 +159,7 @@ class Flight:
         self.sent = 0
         self.rejected = 0
         self.grid = TickGrid(1.0 / self.rate_hz)
-        self.ticks_on_clock = 0
-        self._timer: asyncio.Handle | None = None
-        """the next tick's: the clock line's timer, or a tick due soon (its sample is in)"""
-        self._wake = math.inf
-        """wall time at which the next tick fires on the clock line"""
-        self._tick_soon = False
-        """the next tick's sample is in: it fires when the reader has run (not on the clock)"""
-        self._ticks_failed: asyncio.Future[None] | None = None
-        """a tick's error, carried into the flight's task group"""
+        self.ticker = Ticker(self.grid, self._tick)
         """ticks fired by the clock line because the sample for them had not arrived"""
         self.output = choose_output(opt.output, "px4")
         """what SET_ATTITUDE_TARGET carries (output.py); chosen again once the autopilot is known"""
@@ -329,81 +321,12 @@ class Flight:
         return volume.breach(self.link.state.pos_ned_m)  # type: ignore[no-any-return]
 
     async def _control_loop(self) -> None:
-        """Tick until the flight ends. A tick is plain code run where its cause is: by the reader
-        once the sample for it is in (:meth:`_on_telemetry`: no task to wake), or by a timer on the
-        clock line when the sample is missing (:meth:`_on_clock`). This task only starts the grid
-        and carries a tick's error into the flight's task group."""
-        clock, state = self.link.clock, self.link.state
-        while not clock.ready and not self.finished.is_set():
-            await asyncio.sleep(0.01)
-        if self.finished.is_set():
-            return
-        self.grid.start(clock.now(time.monotonic()), state.t)
-        self._ticks_failed = asyncio.get_running_loop().create_future()
-        self.link.on_telemetry = self._on_telemetry
-        self._arm()
-        ended = asyncio.ensure_future(self.finished.wait())
-        try:
-            await asyncio.wait((ended, self._ticks_failed), return_when=asyncio.FIRST_COMPLETED)
-        finally:
-            self.link.on_telemetry = None
-            if self._timer is not None:
-                self._timer.cancel()
-                self._timer = None
-            ended.cancel()
-        error = self._ticks_failed.exception() if self._ticks_failed.done() else None
-        if error is not None:
-            raise error
+        await self.ticker.run(self.link, self.finished)
 
-    def _arm(self) -> None:
-        """Move the grid to the next tick: fire it soon if its sample is in (the reader runs first,
-        so a tick never starves it), else arm the clock line's timer for when it is missing."""
-        clock, state, grid = self.link.clock, self.link.state, self.grid
-        loop = asyncio.get_running_loop()
-        self._wake = grid.next_tick(clock, state.t, time.monotonic())
-        self._tick_soon = grid.fires_on(state.t)
-        if self._tick_soon:
-            self._timer = loop.call_soon(self._fire, False)
-        else:
-            # the event loop's timers fire up to a ms late. Where the clock line fires every tick (a
-            # stream slower than the loop) the last of it is slept, blocking: at most a quarter of a
-            # tick (sped up, a tick is a few ms of wall time). Where a sample is awaited, never: a
-            # sample arriving meanwhile would go unread, and its tick fire without it.
-            precise_s = 0.0 if grid.led_by_samples else min(PRECISE_SLEEP_S, 0.25 * grid.period_s / clock.rate)
-            self._timer = loop.call_at(self._wake - precise_s, self._on_clock)
-
-    def _on_telemetry(self) -> None:
-        """The reader took in a believed stamp: fire the tick it was waiting for."""
-        timer = self._timer
-        if timer is not None and not self._tick_soon and self.grid.fires_on(self.link.state.t):
-            timer.cancel()
-            self._fire(False)
-
-    def _on_clock(self) -> None:
-        """The clock line reached the tick (less the precise sleep) without its sample."""
-        remaining = self._wake - time.monotonic()
-        if remaining > 0:
-            time.sleep(remaining)  # the last ms or so: the event loop's timers are coarser
-        self.ticks_on_clock += 1
-        self._fire(True)
-
-    def _fire(self, on_clock: bool) -> None:
-        self._timer = None
-        failed = self._ticks_failed
-        if self.finished.is_set() or failed is None or failed.done():
-            return
-        try:
-            self._tick(on_clock)
-            self._arm()
-        except Exception as exc:  # ends the flight as the control task's own error would
-            failed.set_exception(exc)
-
-    def _tick(self, on_clock: bool) -> None:
+    def _tick(self) -> None:
         """One tick: the supervisor's judgement, the controller's step, the setpoint sent, the
         flight's row, the debug values and the health sample."""
-        clock, state, grid = self.link.clock, self.link.state, self.grid
-        tick_wall = time.monotonic()
-        grid.ticked(tick_wall, clock.now(tick_wall), state.t, on_clock)
+        state, grid = self.link.state, self.grid
         t_next = grid.t_next
         tick, sent = None, False
         self._note_resets()
@@ -745,7 +668,7 @@ class Flight:
             "setpoint_rate_hz": (self.sent - 1) / (self._last_sent_t - self._first_sent_t)
             if self.sent > 1 and self._last_sent_t > self._first_sent_t else None,
             "setpoints_rejected": self.rejected, "late_ticks": self.grid.late_ticks,
-            "ticks_on_clock": self.ticks_on_clock,
+            "ticks_on_clock": self.ticker.ticks_on_clock,
             "telemetry_outages": w.outages, "longest_outage_s": w.longest_outage_s,
             "thrust_max_n": thrust.thrust_max_n if thrust else None,
             "thrust_max_est_n": thrust.estimated_thrust_max_n if thrust else None,
