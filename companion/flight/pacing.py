@@ -10,8 +10,7 @@ missing; the rules below keep that fallback from firing ticks the samples should
 - **Grace.** The line runs through the least-delayed arrivals, so most samples arrive after it:
   a tick waits a quarter of a tick past it, or as long as samples have lately been late.
 - **A late sample is its tick's.** After a tick on the clock the grid stands one period on, so
-  the late sample that arrives next does not fire another tick 0.2 ms later (a 1x hold at 100 Hz
-  sent 137 setpoints a second so).
+  the late sample that arrives next does not fire another tick 0.2 ms later.
 - **Lockstep.** Two cases look alike when a clock tick's sample then arrives: a real-time link
   whose sample was late, and a vehicle in lockstep that waited for this process (a slow answer, a
   stall) and has now answered the clock tick's setpoint. The second sends nothing more until it
@@ -19,13 +18,15 @@ missing; the rules below keep that fallback from firing ticks the samples should
   the line learns that slower pace, ever later. So when the next tick fires on the clock as well
   and the stamp has moved one period since the last (the vehicle answers the clock ticks one by
   one), or the line has run far past the grid, the grid steps back to the newest stamp and the
-  samples lead again. Either escape alone keeps lockstep at its pace
-  (tests/companion/test_tick_grid.py); without both it slows to a crawl.
+  samples lead again. Either escape alone keeps lockstep at its pace; without both it slows to a
+  crawl.
 - **A slower stream leads nothing.** A stream slower than the loop (250 Hz on 100 Hz attitude)
   fires no tick: its samples, a few ms from the loop's ticks, would fire extra ones. The clock
   line fires every tick, each on the newest sample.
 
-Pure: the runner reads the clocks and arms the timer.
+Pure: the ticker (:mod:`.ticker`) reads the clocks and arms the timer. Each rule is tested on
+simulated streams in tests/companion/test_tick_grid.py; what they were found by is in
+docs/faults.md, "The control loop's timing".
 """
 
 from __future__ import annotations
@@ -108,8 +109,8 @@ class TickGrid:
     def led_by_samples(self) -> bool:
         """Samples fire the ticks: the stream is as fast as the loop (or a vehicle in lockstep that
         answers each tick). A slower stream does not: its samples, a few ms apart from the loop's
-        ticks, would fire extra ones (250 Hz on a 100 Hz stream gave 268 ticks a second); the
-        clock line fires every tick, and each takes the newest sample."""
+        ticks, would fire extra ones; the clock line fires every tick, and each takes the newest
+        sample."""
         return not self.stream_period_s >= SLOWER_STREAM * self.period_s
 
     def fires_on(self, newest: float) -> bool:
