@@ -5,10 +5,10 @@
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
 ``make test`` prints three pytest summaries in order: everything but the firmware, then
-ArduPilot's tier (run beside it), then PX4's tier (run alone after them; docs/autopilots.md). This prints each one's count and wall time and, where the
-log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run. ``--readme`` replaces
-the sentence between README's ``<!-- ci-durations -->`` markers with them, so that no duration in
-the README is typed by hand.
+ArduPilot's tier (run beside it), then PX4's tier (run alone after them; docs/autopilots.md).
+This prints each one's count and wall time and, where the log has it (bash's ``time`` or a line
+``EXIT n after T s``), the whole run. ``--readme`` replaces the sentence between README's
+``<!-- ci-durations -->`` markers with them, so that no duration in the README is typed by hand.
 """
 
 from __future__ import annotations
