@@ -45,6 +45,7 @@ from .pacing import TickGrid
 from .ticker import Ticker
 from .prepare import RESTORE_WITHIN_S, ParamChanges, prepare_ardupilot, thrust_scale
 from .recorder import FlightRecorder, strict_json
+from .sent import SentSetpoints
 from .silence import AwakeSilence
 from .steps import run_step
 from .thrust_scale import ThrustScaleEstimator
@@ -156,7 +157,7 @@ class Flight:
         self.interrupted = asyncio.Event()
         self._setpoint: tuple[Setpoint | PositionTarget, float] | None = None
         """the newest setpoint to stream, and the vehicle time of the telemetry it was computed from [s]"""
-        self.sent = 0
+        self.setpoints = SentSetpoints()
         self.rejected = 0
         self.grid = TickGrid(1.0 / self.rate_hz)
         self.ticker = Ticker(self.grid, self._tick)
@@ -164,10 +165,6 @@ class Flight:
         self.output = choose_output(opt.output, "px4")
         """what SET_ATTITUDE_TARGET carries (output.py); chosen again once the autopilot is known"""
         self.health = HealthMonitor()
-        self.tick_periods: list[float] = []
-        """wall-clock spacing of sent setpoints (bounded), for the jitter benchmark"""
-        self._last_sent_wall = math.nan
-        self._first_sent_t = self._last_sent_t = math.nan
         self._debug_due = -math.inf
         self.taking_over = False
         self.ours = False
@@ -405,17 +402,7 @@ class Flight:
         else:
             self.link.send_attitude_target(sp.q, sp.body_rates_rad_s, sp.thrust, self.output.type_mask,
                                            stamp_s=stamp_s)
-        self.sent += 1
-        t_sent = self.link.state.t
-        if math.isnan(self._first_sent_t):
-            self._first_sent_t = t_sent
-        self._last_sent_t = t_sent
-        now = time.monotonic()
-        if math.isfinite(self._last_sent_wall):
-            self.tick_periods.append(now - self._last_sent_wall)
-            if len(self.tick_periods) > 100_000:
-                del self.tick_periods[:50_000]
-        self._last_sent_wall = now
+        self.setpoints.sent(self.link.state.t, time.monotonic())
 
     # --- waiting (used by the steps) -------------------------------------------------------
 
@@ -452,9 +439,14 @@ class Flight:
             await asyncio.sleep(0.01)
 
     @property
+    def sent(self) -> int:
+        """setpoints sent so far"""
+        return self.setpoints.count
+
+    @property
     def last_sent_t(self) -> float:
         """vehicle time [s] of the newest setpoint sent"""
-        return self._last_sent_t
+        return self.setpoints.last_t
 
     async def sleep_v(self, seconds: float) -> None:
         """``seconds`` of vehicle time as the telemetry's stamps show it passing."""
@@ -651,12 +643,6 @@ class Flight:
 
     def _summary(self, result: str, message: str) -> dict:
         thrust = self.control.thrust if self.control else None
-        periods = sorted(self.tick_periods)
-        jitter = {}
-        if len(periods) > 10:
-            med = periods[len(periods) // 2]
-            jitter = {"median_period_ms": 1000 * med,
-                      "p99_abs_jitter_ms": 1000 * sorted(abs(p - med) for p in periods)[int(0.99 * len(periods))]}
         ct = self.control.time if self.control else None
         w = self.watch
         params = self.params.record.summary()
@@ -665,14 +651,13 @@ class Flight:
             "controller": self.controller_name, "rate_hz": self.rate_hz, "backend": self.opt.backend,
             "output": self.output.mode, "type_mask": self.output.type_mask,
             "autopilot": self.link.state.autopilot, "setpoints_sent": self.sent,
-            "setpoint_rate_hz": (self.sent - 1) / (self._last_sent_t - self._first_sent_t)
-            if self.sent > 1 and self._last_sent_t > self._first_sent_t else None,
+            "setpoint_rate_hz": self.setpoints.rate_hz(),
             "setpoints_rejected": self.rejected, "late_ticks": self.grid.late_ticks,
             "ticks_on_clock": self.ticker.ticks_on_clock,
             "telemetry_outages": w.outages, "longest_outage_s": w.longest_outage_s,
             "thrust_max_n": thrust.thrust_max_n if thrust else None,
             "thrust_max_est_n": thrust.estimated_thrust_max_n if thrust else None,
-            "vehicle_clock_rate": self.link.clock.rate, "setpoint_timing": jitter,
+            "vehicle_clock_rate": self.link.clock.rate, "setpoint_timing": self.setpoints.timing(),
             # how often the controller's time waited for telemetry or replayed a gap (control_time.py)
             "controller_time": {"held_ticks": ct.held_ticks, "sub_steps": ct.sub_steps,
                                 "dropped_s": round(ct.dropped_s, 3)} if ct else None,

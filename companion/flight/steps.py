@@ -33,8 +33,9 @@ class Flight(Protocol):
     """``--take-over`` of a vehicle found armed or flying"""
     ours: bool
     """the companion answers for the vehicle (it armed it, or the autopilot accepted our take-over)"""
-    sent: int
-    """setpoints sent so far"""
+    @property
+    def sent(self) -> int:
+        """setpoints sent so far"""
 
     @property
     def last_sent_t(self) -> float:
