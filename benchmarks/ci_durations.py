@@ -4,9 +4,8 @@
     python benchmarks/ci_durations.py ci.log
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
-``make test`` prints three pytest summaries in order: everything but the firmware, then
-ArduPilot's tier (run beside it), then PX4's tier (run alone after them; docs/autopilots.md).
-This prints each one's count and wall time and, where the log has it (bash's ``time`` or a line
+``make test`` prints three pytest summaries in order: everything but the firmware, then PX4's
+tier, then ArduPilot's (docs/autopilots.md). This prints each one's count and wall time and, where the log has it (bash's ``time`` or a line
 ``EXIT n after T s``), the whole run. ``--readme`` replaces the sentence between README's
 ``<!-- ci-durations -->`` markers with them, so that no duration in the README is typed by hand.
 """
@@ -39,11 +38,11 @@ def durations(text: str) -> tuple[list[tuple[int, int, float]], float | None]:
 
 def sentence(runs: list[tuple[int, int, float]], total: float, commit: str, date: str) -> str:
     """README's words for one fresh-clone run (three summaries, the whole run)."""
-    (_, main, main_s), (_, ap, ap_s), (_, px4, px4_s) = runs
+    (_, main, main_s), (_, px4, px4_s), (_, ap, ap_s) = runs
     return (f"From a fresh clone with both builds found (no pip cache, no compiled-kernel cache; "
             f"`.ci/run`, {date}, commit {commit}): {total / 60:.1f} minutes in all ({total:.0f} s) — install "
-            f"and lint, {main} tests in {main_s:.0f} s beside {ap} ArduPilot tests in {ap_s:.0f} s, then "
-            f"{px4} PX4 tests in {px4_s:.0f} s.")
+            f"and lint, {main} tests in {main_s:.0f} s, then {px4} PX4 tests in {px4_s:.0f} s, then {ap} "
+            f"ArduPilot tests in {ap_s:.0f} s.")
 
 
 def write_readme(readme: Path, text: str) -> None:
@@ -63,9 +62,12 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--date", default=time.strftime("%Y-%m-%d", time.gmtime()))
     args = ap.parse_args(argv)
     runs, total = durations(args.log.read_text(errors="replace"))
-    names = ["everything but the firmware", "ArduPilot's tier (beside it)", "PX4's tier (after them)"]
+    names = ["everything but the firmware", "PX4's tier", "ArduPilot's tier"]
     for name, (failed, passed, seconds) in zip(names, runs):
         print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")
+    if len(runs) == 3:
+        print(f"the two tiers: {runs[1][2] + runs[2][2]:.0f} s one after the other, "
+              f"{max(runs[1][2], runs[2][2]):.0f} s if side by side")
     if total is not None:
         print(f"in all: {total:.0f} s ({total / 60:.1f} minutes)")
     if args.readme is not None:
