@@ -5,9 +5,10 @@
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
 ``make test`` prints three pytest summaries in order: everything but the firmware, then PX4's
-tier, then ArduPilot's (docs/autopilots.md). This prints each one's count and wall time and, where the log has it (bash's ``time`` or a line
-``EXIT n after T s``), the whole run. ``--readme`` replaces the sentence between README's
-``<!-- ci-durations -->`` markers with them, so that no duration in the README is typed by hand.
+tier, then ArduPilot's (docs/autopilots.md). This prints each one's count and wall time and,
+where the log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run.
+``--readme`` replaces the sentence between README's ``<!-- ci-durations -->`` markers with them,
+so that no duration in the README is typed by hand.
 """
 
 from __future__ import annotations
