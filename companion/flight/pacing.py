@@ -133,23 +133,18 @@ class TickGrid:
         soonest = self.last_tick_wall + (1 - TICK_TOLERANCE) * wall_period + (grace_s if self.line_ahead else 0.0)
         return max(line_wall + grace_s, soonest)
 
-    def rebase_if_line_moved_back(self, wake_wall: float, now_wall: float, rate: float, line_now: float,
-                                  newest: float) -> bool:
-        """The clock line re-anchored behind us (a vehicle that paused): tick from where it is."""
-        if wake_wall - now_wall > RESYNC_TICKS * self.period_s / max(rate, 1e-3):
-            self.t_next = min(line_now, newest) + self.period_s
-            return True
-        return False
-
     def next_tick(self, clock: ClockLine, newest: float, now_wall: float) -> float:
         """Move to the next tick; the wall time to fire it on the clock line if its sample
-        (:meth:`due_stamp`) has not arrived by then."""
+        (:meth:`due_stamp`) has not arrived by then. If the line re-anchored far behind us (a
+        vehicle that paused), the grid ticks from where the line is."""
         t_next = self.advance(newest)
         rate = clock.rate
         grace = self.grace_wall(rate, clock.lateness_s)
-        if self.rebase_if_line_moved_back(clock.wall_at(t_next), now_wall, rate, clock.now(now_wall), newest):
+        line_wall = clock.wall_at(t_next)
+        if line_wall - now_wall > RESYNC_TICKS * self.period_s / max(rate, 1e-3):
+            self.t_next = min(clock.now(now_wall), newest) + self.period_s
             return clock.wall_at(self.t_next) + grace
-        return self.fallback_wall(clock.wall_at(t_next), rate, grace)
+        return self.fallback_wall(line_wall, rate, grace)
 
     def ticked(self, now_wall: float, line_now: float, newest: float, on_clock: bool = False) -> None:
         """After a tick (``on_clock``: fired by the clock line, its sample not in): whether the grid
@@ -161,10 +156,10 @@ class TickGrid:
         self.follow_clock = on_clock and not (answered and self.led_by_samples)
         self.clock_tick_newest = newest if on_clock else math.nan
         self.last_tick_wall = now_wall
-        if newest > self._seen:  # (False while nothing is seen: NaN)
-            self._moves.append(newest - self._seen)
-            self.stream_period_s = sorted(self._moves)[len(self._moves) // 2]
-        if not newest <= self._seen:  # the newest seen so far (the first, too)
+        if not newest <= self._seen:  # a newer stamp than any seen (or the first: NaN)
+            if not math.isnan(self._seen):
+                self._moves.append(newest - self._seen)
+                self.stream_period_s = sorted(self._moves)[len(self._moves) // 2]
             self._seen = newest
         if not on_clock:
             self.line_ahead = False

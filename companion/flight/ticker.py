@@ -86,11 +86,11 @@ class Ticker:
 
     def on_telemetry(self) -> None:
         """The reader took in a believed stamp: fire the tick it was waiting for."""
-        timer = self._timer
-        if timer is not None and not self._tick_soon and self._link is not None \
-                and self.grid.fires_on(self._link.state.t):
-            timer.cancel()
-            self._fire(False)
+        timer, link = self._timer, self._link
+        if timer is None or self._tick_soon or link is None or not self.grid.fires_on(link.state.t):
+            return
+        timer.cancel()
+        self._fire(False)
 
     def _on_clock(self) -> None:
         """The clock line reached the tick (less the precise sleep) without its sample."""
