@@ -27,7 +27,9 @@ import math
 from companion.control.vector import ZERO3
 
 from ..plant.sensors import ImuSample
+from . import world
 from .logic import Autopilot, Severity
+from .sensed import Sensed
 
 __all__ = ["StepGuard", "LOSS_OF_CONTROL_RAD", "LOSS_OF_CONTROL_S"]
 
@@ -67,9 +69,10 @@ class StepGuard:
             ap.vehicle.t += ap.dt  # the clock runs on; the world stands still, whatever is poked into it
             if ap.vehicle.plant.state is not self._frozen:
                 ap.vehicle.plant.state = self._frozen
+            ap.stand_still(Sensed.of(ap.vehicle))
             return
         try:
-            ap.step()
+            world.step(ap)
         except Exception as exc:  # noqa: BLE001 - anything a step raises is a numerical fault here
             self._fault(f"{type(exc).__name__}: {exc}")
             return
@@ -109,5 +112,6 @@ class StepGuard:
         v.estimator.q, v.mocap.latest, v.omega_est = q, tracked._replace(vel_ned_m_s=ZERO3), ZERO3
         v.imu_sample = ImuSample(ZERO3, imu.specific_force_body_m_s2)
         self.halted = what
+        ap.stand_still(Sensed.of(v))  # the rules see the restored world, not the faulty step
         ap.terminate(f"Numerical fault ({what})")
         ap.say(Severity.CRITICAL, "World halted: restart the vehicle")

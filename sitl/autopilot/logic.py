@@ -1,6 +1,8 @@
 """The simulated vehicle's autopilot: PX4-like modes, arming, take-off, landing, offboard, failsafe.
 
-Pure logic over a :class:`~sitl.plant.vehicle.SimVehicle`; no sockets, no clock. The MAVLink edge
+Pure logic: it reads the vehicle as a :class:`~sitl.autopilot.sensed.Sensed` record and commands its
+motors and onboard loop; it never steps the plant (:mod:`sitl.autopilot.world` does, between
+:meth:`Autopilot.decide` and :meth:`Autopilot.observe`). No sockets, no clock. The MAVLink edge
 (:mod:`sitl.autopilot.server`) decodes messages into the calls below and encodes the state back.
 
 Rules, as PX4 has them:
@@ -49,6 +51,7 @@ from companion.control.vector import ZERO3, Vec3, sub
 
 from .flavours import FlavourRules, Mode, rules_for
 from ..plant.vehicle import SimVehicle
+from .sensed import Sensed
 from .shaping import BRAKE, ShapedReference, ShapingLimits, TrajectoryTarget, at_rest, shape_step
 
 __all__ = [
@@ -198,8 +201,8 @@ _POSITION_MODES = (Mode.HOLD, Mode.TAKEOFF, Mode.LAND, Mode.RTL, Mode.GUIDED)
 
 
 class Autopilot:
-    """Modes, arming and setpoints around one :class:`SimVehicle`; call :meth:`step` at the
-    plant rate."""
+    """Modes, arming and setpoints around one :class:`SimVehicle`: :meth:`decide` before each plant
+    step, :meth:`observe` after it (:func:`sitl.autopilot.world.step`)."""
 
     POSITION_TIMEOUT_S = 0.5
     """no tracking sample for this long in the air: position lost (PX4's COM_POS_FS_DELAY is 1 s)"""
@@ -209,6 +212,8 @@ class Autopilot:
     def __init__(self, vehicle: SimVehicle, params: AutopilotParams | None = None) -> None:
         self.vehicle = vehicle
         vehicle.enable_fault_checks()
+        self.sensed = Sensed.of(vehicle)
+        """the vehicle's readings at the newest :meth:`decide` or :meth:`observe`"""
         self.params = params or AutopilotParams()
         self.accel_bias_z_m_s2 = 0.0
         """vertical accelerometer bias (NED), learnt against the tracking system over ~2 s"""
@@ -300,7 +305,7 @@ class Autopilot:
 
     @property
     def t(self) -> float:
-        return self.vehicle.t
+        return self.sensed.t
 
     # --- commands ------------------------------------------------------------------------
 
@@ -337,8 +342,8 @@ class Autopilot:
     def _arm_disarm(self, arm: float, force: float) -> CommandResult:
         if arm == 1.0 and self.terminated:
             return self._deny(f"Arming denied: flight terminated (restart): {self.terminated}")
-        if arm == 1.0 and self.vehicle.imu_failed:
-            return self._deny(f"Arming denied: IMU failed ({self.vehicle.imu_failed})")
+        if arm == 1.0 and self.sensed.imu_failed:
+            return self._deny(f"Arming denied: IMU failed ({self.sensed.imu_failed})")
         if arm == 1.0:
             if self.armed:
                 return CommandResult(MavResult.ACCEPTED)
@@ -351,7 +356,7 @@ class Autopilot:
             self.armed = True
             self.arm_time = self.t
             self.lifted_off = False
-            self.home = self.vehicle.tracked.pos_ned_m
+            self.home = self.sensed.tracked.pos_ned_m
             self.vehicle.motors_on = True
             self._reset_controllers()
             self._say(Severity.INFO, "Armed")
@@ -441,7 +446,7 @@ class Autopilot:
                 return self._deny("Offboard denied: No offboard signal", MavResult.TEMPORARILY_REJECTED)
             self.offboard_owner = sender
             if self.setpoint_sender != sender:  # the newest setpoint is another system's: not the owner's
-                self.offboard_attitude = AttitudeSetpoint(self.vehicle.estimator.q, (0.0, 0.0, 0.0),
+                self.offboard_attitude = AttitudeSetpoint(self.sensed.q_est, (0.0, 0.0, 0.0),
                                                           self.vehicle.hover_thrust_n)
                 self.offboard_uses_attitude, self.offboard_target = True, None
                 self.setpoint_sender = sender
@@ -462,8 +467,8 @@ class Autopilot:
     def _enter(self, mode: Mode) -> None:
         prev = self.mode
         self.mode = mode
-        pos = self.vehicle.tracked.pos_ned_m
-        yaw = float(quat.to_euler(self.vehicle.estimator.q)[2])
+        pos = self.sensed.tracked.pos_ned_m
+        yaw = float(quat.to_euler(self.sensed.q_est)[2])
         traj = self.vehicle.scenario.trajectory
         was_braking, self.braking = self.braking, False
         if mode in _POSITION_MODES and prev not in _POSITION_MODES:
@@ -475,7 +480,7 @@ class Autopilot:
                 self.position_loop.reset()
                 self.position_loop.thrust_n = self.setpoint.thrust_n
             self.braking = not self.landed
-            self.ref_filter = ReferenceFilter(traj, pos, yaw, self.vehicle.tracked.vel_ned_m_s)
+            self.ref_filter = ReferenceFilter(traj, pos, yaw, self.sensed.tracked.vel_ned_m_s)
         elif mode == Mode.OFFBOARD and self.offboard_target is not None and not was_braking:
             self._start_trajectory(from_mode_reference=prev in _POSITION_MODES)  # (braking: go on from its reference)
         if mode in (Mode.HOLD, Mode.GUIDED):
@@ -562,7 +567,7 @@ class Autopilot:
                         self._say(Severity.WARNING, "Attitude and body rates both set: rates not flown")
                 rates = (0.0, 0.0, rates[2])
         else:
-            q_d = prev.q_d if prev else self.vehicle.estimator.q
+            q_d = prev.q_d if prev else self.sensed.q_est
         self.offboard_attitude = AttitudeSetpoint(q_d, rates, thrust_n)  # type: ignore[arg-type]
         if use_att != self.offboard_uses_attitude:  # attitude <-> rates: the old integral is meaningless
             self.vehicle.onboard.controller.reset_integral()
@@ -608,8 +613,8 @@ class Autopilot:
 
     def _vehicle_reference(self) -> ShapedReference:
         """A reference where the vehicle is, moving as it moves."""
-        ms = self.vehicle.tracked
-        return ShapedReference(ms.pos_ned_m, ms.vel_ned_m_s, ZERO3, float(quat.to_euler(self.vehicle.estimator.q)[2]))
+        ms = self.sensed.tracked
+        return ShapedReference(ms.pos_ned_m, ms.vel_ned_m_s, ZERO3, float(quat.to_euler(self.sensed.q_est)[2]))
 
     def _start_trajectory(self, from_mode_reference: bool) -> None:
         """OFFBOARD begins to fly trajectory setpoints: from the position mode's own reference if one was
@@ -624,16 +629,27 @@ class Autopilot:
 
     # --- stepping ----------------------------------------------------------------------
 
-    def step(self) -> None:
-        """One plant step: failsafes, the mode's setpoint, physics, landing detection."""
+    def decide(self, sensed: Sensed) -> AttitudeSetpoint:
+        """Before a plant step, on what the vehicle sensed: the failsafes, then the setpoint the
+        onboard attitude loop is to track (the mode's, while armed)."""
+        self.sensed = sensed
         self._failsafes()
         if self.armed:
             self.setpoint = self._mode_setpoint()
-        self.vehicle.step(self.setpoint)
+        return self.setpoint
+
+    def observe(self, sensed: Sensed) -> None:
+        """After a plant step, on what the vehicle sensed: landing detection and the time flown."""
+        self.sensed = sensed
         self._update_landed()
         if self.armed and not self.landed:
             self.airborne_s += self.dt
         self._k += 1
+
+    def stand_still(self, sensed: Sensed) -> None:
+        """A step in which nothing flies (a halted world, :mod:`sitl.autopilot.guard`): the reading
+        follows the clock, no rule runs."""
+        self.sensed = sensed
 
     airborne_s = 0.0
     """vehicle seconds flown (armed, off the ground) since boot"""
@@ -650,14 +666,14 @@ class Autopilot:
 
     def _sensor_failsafes(self) -> None:
         """A failed IMU or lost position in the air: say why once, and land (blind if need be)."""
-        v = self.vehicle
+        v = self.sensed
         if self.failsafe != Failsafe.POSITION_LOST and v.position_age_s < 0.05:  # fresh tracking only
             # learn the accelerometer's vertical bias against the tracking system, for a blind descent
-            w, x, y, z = v.estimator.q
-            f = v.imu_sample.specific_force_body_m_s2
+            w, x, y, z = v.q_est
+            f = v.imu.specific_force_body_m_s2
             sf_ned_z = (2.0 * (x * z - w * y) * f[0] + 2.0 * (y * z + w * x) * f[1]
                         + (w * w - x * x - y * y + z * z) * f[2])  # third row of R(q) times f
-            g = v.scenario.vehicle.gravity_m_s2
+            g = self.vehicle.scenario.vehicle.gravity_m_s2
             self.accel_bias_z_m_s2 += self.dt / 2.0 * (sf_ned_z + g - v.tracked.accel_ned_m_s2[2]
                                                        - self.accel_bias_z_m_s2)
         if not self.armed or self.landed:
@@ -709,7 +725,7 @@ class Autopilot:
                 self._disarm("Landed, disarmed")
 
     def _idle_setpoint(self) -> AttitudeSetpoint:
-        yaw = quat.to_euler(self.vehicle.estimator.q)[2]
+        yaw = quat.to_euler(self.sensed.q_est)[2]
         return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3, 0.0)
 
     def _reset_controllers(self) -> None:
@@ -758,7 +774,7 @@ class Autopilot:
         if self._k % self.pos_div != 0:
             return self.setpoint
         if mode == Mode.RTL:
-            pos = self.vehicle.tracked.pos_ned_m
+            pos = self.sensed.tracked.pos_ned_m
             if not self._land_phase_home and math.hypot(pos[0] - self.home[0], pos[1] - self.home[1]) < 0.3:
                 self._land_phase_home = True
                 self._enter(Mode.LAND)
@@ -767,11 +783,10 @@ class Autopilot:
             self.position_loop.reset()  # the ground reaction is not a disturbance to learn
         if mode == Mode.LAND:
             self.ref_filter.params = dataclasses.replace(self.ref_filter.params, max_speed_m_s=self.land_speed_m_s())
-        v = self.vehicle
-        ms = v.tracked
-        sf_ned = quat.rotate(v.estimator.q, v.mean_specific_force_body())
+        ms, q = self.sensed.tracked, self.sensed.q_est
+        sf_ned = quat.rotate(q, self.vehicle.mean_specific_force_body())  # the IMU's mean since the last position step
         ref = self._reference()
-        meas = PositionMeasurement(ms.pos_ned_m, ms.vel_ned_m_s, v.estimator.q, sf_ned)
+        meas = PositionMeasurement(ms.pos_ned_m, ms.vel_ned_m_s, q, sf_ned)
         return self.position_loop.update(meas, ref, self.pos_dt)
 
     def _reference(self) -> PositionReference:
@@ -784,7 +799,7 @@ class Autopilot:
         if self.shaped is None:
             self.shaped = self._vehicle_reference()
         self.shaped = s = shape_step(self.params.shaping, self.shaped, target, self.pos_dt,
-                                     self.vehicle.tracked.pos_ned_m, self.braking)
+                                     self.sensed.tracked.pos_ned_m, self.braking)
         if self.braking and at_rest(s._replace(vel_ned_m_s=sub(s.vel_ned_m_s, target.vel_ned_m_s))):
             self._stop_braking(s)
         return PositionReference(s.pos_ned_m, s.vel_ned_m_s, s.accel_ned_m_s2, s.yaw_rad)
@@ -820,7 +835,7 @@ class Autopilot:
         """PX4's descent speed in LAND at the vehicle's height above home (FlightTaskAuto's
         _prepareLandSetpoints): MPC_LAND_SPEED below MPC_LAND_ALT2, MPC_Z_VEL_MAX_DN above MPC_LAND_ALT1;
         never below MPC_LAND_SPEED (a faster MPC_LAND_SPEED is flown as set)."""
-        height = self.home[2] - float(self.vehicle.tracked.pos_ned_m[2])
+        height = self.home[2] - float(self.sensed.tracked.pos_ned_m[2])
         slow, fast = self.params.land_speed_m_s, max(self.params.shaping.speed_down_m_s, self.params.land_speed_m_s)
         k = min(max((height - self.LAND_ALT2_M) / (self.LAND_ALT1_M - self.LAND_ALT2_M), 0.0), 1.0)
         return slow + k * (fast - slow)
@@ -832,9 +847,9 @@ class Autopilot:
         reads 1 g), so the vehicle counts itself down once the integrated descent exceeds the
         height it had when position was lost by 30 % + 0.5 m; resting on the ground meanwhile
         costs nothing (the commanded thrust is below the weight)."""
-        v, m = self.vehicle, self.vehicle.scenario.vehicle
-        q = v.estimator.q
-        sf_ned = quat.rotate(q, v.imu_sample.specific_force_body_m_s2)
+        m = self.vehicle.scenario.vehicle
+        q = self.sensed.q_est
+        sf_ned = quat.rotate(q, self.sensed.imu.specific_force_body_m_s2)
         self.blind_vz_m_s += (sf_ned[2] + m.gravity_m_s2 - self.accel_bias_z_m_s2) * self.dt
         vz = self.blind_vz_m_s
         self._blind_descended_m += max(vz, 0.0) * self.dt
@@ -849,9 +864,9 @@ class Autopilot:
     def _level_keeping_altitude(self) -> AttitudeSetpoint:
         """GUIDED after GUID_TIMEOUT: level at the current yaw, climb rate zero, drifting freely."""
         m = self.vehicle.scenario.vehicle
-        v_up = -self.vehicle.tracked.vel_ned_m_s[2]
+        v_up = -self.sensed.tracked.vel_ned_m_s[2]
         thrust_n = min(max(m.mass_kg * (m.gravity_m_s2 - 2.0 * v_up), 0.0), m.thrust_max_n)
-        yaw = float(quat.to_euler(self.vehicle.estimator.q)[2])
+        yaw = float(quat.to_euler(self.sensed.q_est)[2])
         return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3, thrust_n)
 
     def _guided_target(self, sp: AttitudeSetpoint) -> AttitudeSetpoint:
@@ -866,10 +881,10 @@ class Autopilot:
             self._shaped_q = None
         thrust_n = sp.thrust_n
         if self.params.guided_thrust_is_throttle and self.params.angle_boost:
-            boosted = thrust_n * _angle_boost(self.vehicle.estimator.q)
+            boosted = thrust_n * _angle_boost(self.sensed.q_est)
             thrust_n = min(boosted, self.vehicle.scenario.vehicle.thrust_max_n)
         if not self.params.guided_thrust_is_throttle:
-            v_up = -self.vehicle.tracked.vel_ned_m_s[2]
+            v_up = -self.sensed.tracked.vel_ned_m_s[2]
             m = self.vehicle.scenario.vehicle
             cos_tilt = max(math.cos(float(quat.tilt_angle(q_d))), 0.3)
             thrust_n = m.mass_kg * (m.gravity_m_s2 + 2.0 * (self.guided_climb_rate_m_s - v_up)) / cos_tilt
@@ -884,7 +899,7 @@ class Autopilot:
         firmware, not copied from it: ArduCopter 4.8 SITL turns at 49 deg/s shaped, 85 deg/s
         unshaped (tests/contract)."""
         if self._shaped_q is None:
-            self._shaped_q, self._shaped_omega = self.vehicle.estimator.q, self.vehicle.imu_sample.gyro_rad_s
+            self._shaped_q, self._shaped_omega = self.sensed.q_est, self.sensed.imu.gyro_rad_s
         q, prev = self._shaped_q, self._shaped_omega
         err = quat.log(quat.relative(q, q_target))
         tc = max(self.params.input_tc_s, self.dt)
@@ -901,7 +916,7 @@ class Autopilot:
         """Rates-only setpoints are flown as an attitude reference integrated from the commanded
         rates, so the attitude loop's integral keeps its meaning; re-anchored to the estimate if
         the vehicle falls more than 30 deg behind (saturation), so it cannot run away."""
-        q_est = self.vehicle.estimator.q
+        q_est = self.sensed.q_est
         q_ref = self._rate_q
         if q_ref is None or quat.angle_between(q_ref, q_est) > math.radians(30.0):
             q_ref = q_est
@@ -913,7 +928,7 @@ class Autopilot:
     def _update_landed(self) -> None:
         if self.failsafe == Failsafe.POSITION_LOST:
             return  # the tracked position is frozen: the blind descent decides
-        ms = self.vehicle.tracked
+        ms = self.sensed.tracked
         height = self.ground_z - ms.pos_ned_m[2]
         speed = math.sqrt(sum(v * v for v in ms.vel_ned_m_s))
         if self.landed:

@@ -20,6 +20,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sitl.autopilot import world
 from sitl.autopilot.logic import Autopilot, Mode
 from sitl.autopilot.server import MAX_PEERS, MAX_REASONS, MavlinkServer, ServerConfig
 from tests.sitl.test_autopilot import airborne, make, run, stream
@@ -72,7 +73,7 @@ def feed(server: MavlinkServer, datagrams: list[bytes], steps: list[int]) -> Non
         for i, (data, n) in enumerate(zip(datagrams, steps)):
             server.datagram_received(data, ("127.0.0.1", 40000 + i % 40))
             for _ in range(n):
-                server.ap.step()
+                world.step(server.ap)
         run(server.ap, 0.05)
 
 

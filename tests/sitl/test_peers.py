@@ -12,6 +12,7 @@ from collections import Counter
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sitl.autopilot import world
 from sitl.autopilot.server import MAX_PEERS, MavlinkServer, ServerConfig
 from tests.sitl.test_autopilot import make
 
@@ -74,7 +75,7 @@ def join(s: MavlinkServer, addr: tuple[str, int], sysid: int = 255) -> None:
 
 def steps(s: MavlinkServer, seconds: float) -> None:
     for _ in range(int(round(seconds / s.ap.dt))):
-        s.ap.step()
+        world.step(s.ap)
         s._telemetry_tick()
 
 
