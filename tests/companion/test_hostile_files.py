@@ -10,23 +10,9 @@ import pytest
 from companion.cli import main
 from companion.config import MAX_FILE_BYTES, ConfigError, read_text
 from companion.mission import is_safe_component, load_mission, safe_component
+from helpers.missions import goto_mission
 
-GOOD = """name = "m"
-
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-
-[[steps]]
-action = "offboard"
-
-[[steps]]
-action = "goto"
-waypoints = [[1, 0, -1.5], [1, 1, -1.5]]
-
-[[steps]]
-action = "land"
-"""
+GOOD = goto_mission()
 
 
 def check(capsys, path):

@@ -8,24 +8,13 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from companion.mavlink.modes import COPTER_MODES, px4_custom_mode
 from companion.link.pymavlink_link import PymavlinkLink
+from helpers.links import fed_link
 
 PEER = ("127.0.0.1", 14580)
 
 
 def link_with(frames) -> PymavlinkLink:
-    async def main() -> PymavlinkLink:
-        link = PymavlinkLink("udpin://127.0.0.1:0")
-        for f in frames:
-            link._received(f, PEER)
-        stop = asyncio.Event()
-        reader = asyncio.create_task(link.run(stop))
-        for _ in range(5):
-            await asyncio.sleep(0)
-        stop.set()
-        await reader
-        return link
-
-    return asyncio.run(main())
+    return fed_link(frames, PEER)
 
 
 def mav(sysid=1, compid=1) -> mavlink.MAVLink:

@@ -2,26 +2,9 @@
 
 
 from companion.mission import load_mission
-from helpers.missions import load_text, refusal
+from helpers.missions import goto_mission, load_text, refusal
 
-GOOD = """name = "m"
-[controller]
-position = "pd_do"
-
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-
-[[steps]]
-action = "offboard"
-
-[[steps]]
-action = "goto"
-waypoints = [[1, 0, -1.5], [1, 1, -1.5]]
-
-[[steps]]
-action = "land"
-"""
+GOOD = goto_mission('[controller]\nposition = "pd_do"\n')
 
 
 def test_a_good_mission_loads(tmp_path):

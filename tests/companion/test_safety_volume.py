@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from companion.mission import FenceCircle, FencePolygon, SafetyVolume, load_mission
-from helpers.missions import refusal
+from helpers.missions import goto_mission, refusal
 
 CYL = SafetyVolume(max_distance_m=10.0, max_altitude_m=5.0)
 BOX = SafetyVolume(shape="box", max_distance_m=50.0, max_altitude_m=5.0, north_m=(-2.0, 8.0), east_m=(-3.0, 3.0))
@@ -82,31 +82,13 @@ def test_breach_and_margin_agree(p):
 
 # --- missions against their volume -------------------------------------------------------------
 
-MISSION = """name = "m"
-
-[safety.volume]
-max_distance_m = 10
-max_altitude_m = 5
-
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-
-[[steps]]
-action = "offboard"
-
-[[steps]]
-action = "goto"
-waypoints = [[1, 0, -1.5], [1, 1, -1.5]]
-
-[[steps]]
+HOLD_STEP = """[[steps]]
 action = "hold"
 duration_s = 1
 position_ned_m = [0, 0, -1.5]
 
-[[steps]]
-action = "land"
 """
+MISSION = goto_mission("\n[safety.volume]\nmax_distance_m = 10\nmax_altitude_m = 5\n", before_land=HOLD_STEP)
 
 
 def test_the_mission_inside_its_volume_loads(tmp_path):

@@ -2,7 +2,6 @@
 one identity (companion/mavlink/identity.py), decided without sockets; and the link's receive path
 fed frames as a router would deliver them (one address, several systems)."""
 
-import asyncio
 import random
 
 import pytest
@@ -10,10 +9,10 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from companion.mavlink.modes import px4_custom_mode
 from companion.config import ConfigError
-from companion.link.pymavlink_link import PymavlinkLink
 from companion.mavlink.identity import (AutopilotsHeard, SequenceStreams, VehicleTarget, connection_problem,
                                         resolve_target)
 from companion.mission import load_mission
+from helpers.links import fed_link
 
 ROUTER = ("127.0.0.1", 14550)
 
@@ -131,21 +130,7 @@ def test_a_missions_target_table_is_read_and_a_bad_one_refused_with_its_line(tmp
 
 
 def _fed(frames, target):
-    async def main():
-        link = PymavlinkLink("udpin://127.0.0.1:0", target=target)
-        sent = []
-        link._transport = type("T", (), {"sendto": lambda self, buf, peer: sent.append(buf), "close": lambda s: None})()
-        for f in frames:
-            link._received(f, ROUTER)
-        stop = asyncio.Event()
-        reader = asyncio.create_task(link.run(stop))
-        for _ in range(5):
-            await asyncio.sleep(0)
-        stop.set()
-        await reader
-        return link
-
-    return asyncio.run(main())
+    return fed_link(frames, ROUTER, target=target)
 
 
 def test_behind_a_router_the_target_system_is_followed_and_the_other_ignored():

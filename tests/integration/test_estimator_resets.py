@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
+from helpers.missions import flight_mission, sim_param, step
 from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT
 
 from .test_companion_e2e import segments
@@ -24,32 +25,11 @@ HOLD = (0.0, 0.0, -1.5)
 
 
 def mission(param: str) -> str:
-    return f"""name = "estimator_reset"
-[controller]
-position = "ism_do"
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-[[steps]]
-action = "offboard"
-[[steps]]
-name = "settle"
-action = "hold"
-duration_s = 3.0
-position_ned_m = [0.0, 0.0, -1.5]
-[[steps]]
-name = "glitch"
-action = "set_param"
-param = "{param}"
-value = {SHIFT_M}
-sim_only = true
-[[steps]]
-name = "hold after"
-action = "hold"
-duration_s = 6.0
-[[steps]]
-action = "land"
-"""
+    return flight_mission("estimator_reset",
+                          step("hold", "settle", duration_s=3.0, position_ned_m=HOLD),
+                          sim_param("glitch", param, SHIFT_M),
+                          step("hold", "hold after", duration_s=6.0),
+                          step("land"))
 
 
 def reported_positions(flight) -> tuple[np.ndarray, np.ndarray]:
@@ -102,31 +82,10 @@ def test_a_position_reset_in_a_hold_is_not_flown(sitl, companion, tmp_path, para
     assert not s.stop()["armed"]
 
 
-UNSTABLE = """name = "unstable_estimate"
-[controller]
-position = "ism_do"
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-[[steps]]
-action = "offboard"
-[[steps]]
-action = "hold"
-duration_s = 2.0
-""" + "".join(f"""[[steps]]
-action = "set_param"
-param = "SIM_POS_JUMP_{axis}"
-value = {value}
-sim_only = true
-[[steps]]
-action = "hold"
-duration_s = 1.0
-""" for axis, value in (("N", 2.0), ("E", -3.0), ("N", -2.0))) + """[[steps]]
-action = "hold"
-duration_s = 5.0
-[[steps]]
-action = "land"
-"""
+UNSTABLE = flight_mission("unstable_estimate", step("hold", duration_s=2.0),
+                          *(sim_param(None, f"SIM_POS_JUMP_{axis}", value) + step("hold", duration_s=1.0)
+                            for axis, value in (("N", 2.0), ("E", -3.0), ("N", -2.0))),
+                          step("hold", duration_s=5.0), step("land"))
 
 
 def test_an_estimate_that_keeps_resetting_ends_the_mission(sitl, companion, tmp_path):

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from helpers.missions import flight_mission, sim_param, step
 from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT, RelayProcess
 
 from .test_companion_e2e import segments
@@ -25,45 +26,13 @@ def params_mission(tmp_path: Path, hold_s: float = 60.0) -> str:
     """Take-off to 1.5 m (PX4 takes it from MIS_TAKEOFF_ALT, 2.5 m at boot), offboard, three
     set_param steps (one kept), a long hold to be interrupted in, land."""
     p = tmp_path / "params.toml"
-    p.write_text(f'''name = "params"
-[controller]
-position = "ism_do"
-
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-
-[[steps]]
-action = "offboard"
-
-[[steps]]
-name = "slower landing"
-action = "set_param"
-param = "MPC_LAND_SPEED"
-value = 0.5
-
-[[steps]]
-name = "wind"
-action = "set_param"
-param = "SIM_WIND_E"
-value = 0.5
-sim_only = true
-
-[[steps]]
-name = "disarm later"
-action = "set_param"
-param = "COM_DISARM_LAND"
-value = 3.0
-keep = true
-
-[[steps]]
-name = "windy hold"
-action = "hold"
-duration_s = {hold_s}
-
-[[steps]]
-action = "land"
-''')
+    p.write_text(flight_mission(
+        "params",
+        step("set_param", "slower landing", param="MPC_LAND_SPEED", value=0.5),
+        sim_param("wind", "SIM_WIND_E", 0.5),
+        step("set_param", "disarm later", param="COM_DISARM_LAND", value=3.0, keep=True),
+        step("hold", "windy hold", duration_s=hold_s),
+        step("land")))
     return str(p)
 
 

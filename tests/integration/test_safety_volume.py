@@ -7,43 +7,18 @@ import numpy as np
 import pytest
 
 from companion.plots import load_timeseries
+from helpers.missions import HOLD_NED_M, flight_mission, sim_param, step
 from helpers.processes import LOCKSTEP, LOCKSTEP_SPEEDUP, PAPER, PAPER_OUTPUT
 
 from .test_companion_e2e import segments
 
 pytestmark = pytest.mark.integration
 
-DRIFTING = """name = "drifting"
-[controller]
-position = "pid"
-[safety.volume]
-max_distance_m = 3.0
-max_altitude_m = 5.0
-[[steps]]
-action = "takeoff"
-altitude_m = 1.5
-[[steps]]
-action = "offboard"
-[[steps]]
-name = "storm"
-action = "set_param"
-param = "SIM_WIND_N"
-value = 6.0
-sim_only = true
-[[steps]]
-name = "gust"
-action = "set_param"
-param = "SIM_FORCE_X"
-value = 6.0
-sim_only = true
-[[steps]]
-name = "hold in the storm"
-action = "hold"
-duration_s = 20.0
-position_ned_m = [0.0, 0.0, -1.5]
-[[steps]]
-action = "land"
-"""
+DRIFTING = flight_mission("drifting",
+                          sim_param("storm", "SIM_WIND_N", 6.0),
+                          sim_param("gust", "SIM_FORCE_X", 6.0),
+                          step("hold", "hold in the storm", duration_s=20.0, position_ned_m=HOLD_NED_M),
+                          step("land"), position="pid", volume=(3.0, 5.0))
 
 
 def test_a_vehicle_blown_out_of_its_volume_is_held_and_landed(sitl, companion, tmp_path):
