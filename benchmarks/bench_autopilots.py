@@ -23,6 +23,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from benchmarks.figures import save_figure  # noqa: E402
 from companion.plots import load_timeseries  # noqa: E402
 from tests.helpers.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4  # noqa: E402
 
@@ -119,11 +120,7 @@ def draw(sessions: dict, path: Path) -> None:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="center")
     fig.suptitle("The 4 m square at 2 m/s on the real firmware (first flight of each)")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    print(f"\nfigure: {path}")
+    save_figure(fig, path)
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from companion.control.names import CONTROLLER_LABELS  # noqa: E402
+from benchmarks.figures import save_figure  # noqa: E402
 from companion.plots import load_timeseries  # noqa: E402
 from companion.vehicle_process import FirmwareVehicle  # noqa: E402
 from sitl.firmware.builds import arducopter_binary, px4_build  # noqa: E402
@@ -227,11 +228,7 @@ def draw(folders: dict[tuple[str, str, str], Path], args: argparse.Namespace, pa
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, ncol=3)
     axs[-1, 0].set_xlabel("time from the disturbance [s]")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    print(f"\nfigure: {path}")
+    save_figure(fig, path)
 
 
 if __name__ == "__main__":

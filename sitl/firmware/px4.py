@@ -24,6 +24,7 @@ from pathlib import Path
 from .airframe import AIRFRAMES
 from .bridge import Bridge
 from .px4_wire import MotorOutputs, Px4Wire
+from .sockets import read_stream
 from .builds import die_with_parent
 
 __all__ = ["Px4Ports", "Px4Process", "Px4Bridge", "PX4_AIRFRAME"]
@@ -158,12 +159,9 @@ class Px4Bridge(Bridge):
         self.register(conn, self._readable)
 
     def _readable(self, sock: socket.socket) -> None:
-        try:
-            data = sock.recv(65536)
-        except (BlockingIOError, InterruptedError, TimeoutError):
+        data = read_stream(sock)
+        if data is None:
             return
-        except OSError:
-            data = b""
         if not data:
             self.unregister(sock)
             sock.close()

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from .frames import CLOCKS_MS, CLOCKS_US, COMMANDS, SETPOINTS, armed, for_component, frames, stamps
+from .sockets import read_stream
 
 if TYPE_CHECKING:
     from .signed_link import SignedLink
@@ -28,7 +29,26 @@ Local = Callable[[bytes], list[bytes]]
 """the bridge's own component: frames addressed to it in, its replies out"""
 
 
-class UdpRelay:
+class _Relay:
+    """What both relays hold: the stamp callbacks, the firmware's heartbeat, the bridge's own
+    component, signing at the companion's side."""
+
+    def __init__(self, on_setpoint: OnStamp, on_telemetry: OnStamp, local: tuple[int, Local] | None,
+                 on_heartbeat: OnHeartbeat | None) -> None:
+        self.on_setpoint, self.on_telemetry = on_setpoint, on_telemetry
+        """a setpoint's and a telemetry frame's stamp [s], as they pass"""
+        self.local = local
+        """(component id, handler): what the companion addresses to that component is answered
+        here instead of through the firmware's forwarding (PX4 keeps two forwarded messages a link)"""
+        self.on_heartbeat = on_heartbeat
+        """the firmware's heartbeat: armed or not"""
+        self.on_command: Callable[[], None] | None = None
+        """the companion sent a command"""
+        self.signing: SignedLink | None = None
+        """MAVLink 2 signing at the companion's side (frames in checked, frames out signed)"""
+
+
+class UdpRelay(_Relay):
     """UDP both ways: the firmware sends to ``firmware_side`` (bound here); what it sends goes on
     to the companion at ``companion`` (PX4: 127.0.0.1:14540), and what comes back goes to the
     firmware's address."""
@@ -36,15 +56,7 @@ class UdpRelay:
     def __init__(self, firmware_side: tuple[str, int], companion: tuple[str, int], on_setpoint: OnStamp,
                  on_telemetry: OnStamp, local: tuple[int, Local] | None = None,
                  on_heartbeat: OnHeartbeat | None = None) -> None:
-        self.local = local
-        self.on_heartbeat = on_heartbeat
-        """the firmware's heartbeat: armed or not"""
-        self.on_command: Callable[[], None] | None = None
-        """the companion sent a command"""
-        self.signing: SignedLink | None = None
-        """MAVLink 2 signing at the companion's side (frames in checked, frames out signed)"""
-        """(component id, handler): what the companion addresses to that component is answered
-        here instead of through the firmware's forwarding (PX4 keeps two forwarded messages a link)"""
+        super().__init__(on_setpoint, on_telemetry, local, on_heartbeat)
         self.fw_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.fw_sock.bind(firmware_side)
         self.fw_sock.setblocking(False)
@@ -53,7 +65,6 @@ class UdpRelay:
         self.co_sock.setblocking(False)
         self.companion = companion
         self.firmware_addr: tuple[str, int] | None = None
-        self.on_setpoint, self.on_telemetry = on_setpoint, on_telemetry
         self.datagrams = {"down": 0, "up": 0, "dropped": 0}
 
     def sockets(self) -> list[socket.socket]:
@@ -121,25 +132,20 @@ class UdpRelay:
             s.close()
 
 
-class TcpRelay:
+class TcpRelay(_Relay):
     """TCP: companions connect to ``listen`` (ArduPilot's 5760); each gets its own connection to
     the firmware at ``firmware``, bytes relayed both ways."""
 
     def __init__(self, listen: tuple[str, int], firmware: tuple[str, int], on_setpoint: OnStamp,
                  on_telemetry: OnStamp, local: tuple[int, Local] | None = None,
                  on_heartbeat: OnHeartbeat | None = None) -> None:
-        self.local = local
-        self.on_heartbeat = on_heartbeat
-        """both as :class:`UdpRelay`'s"""
-        self.on_command: Callable[[], None] | None = None
-        self.signing: SignedLink | None = None
+        super().__init__(on_setpoint, on_telemetry, local, on_heartbeat)
         self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.server.bind(listen)
         self.server.listen(4)
         self.server.setblocking(False)
         self.firmware = firmware
-        self.on_setpoint, self.on_telemetry = on_setpoint, on_telemetry
         self.pairs: dict[socket.socket, socket.socket] = {}
         self._bufs: dict[socket.socket, bytearray] = {}
         self._up: set[socket.socket] = set()
@@ -164,12 +170,9 @@ class TcpRelay:
                 self._unpaired.remove(sock)
                 sock.close()
             return
-        try:
-            data = sock.recv(65536)
-        except (BlockingIOError, InterruptedError, TimeoutError):
+        data = read_stream(sock)
+        if data is None:
             return
-        except OSError:
-            data = b""
         other = self.pairs.get(sock)
         if not data or other is None:
             self._drop(sock)

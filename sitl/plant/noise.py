@@ -13,19 +13,9 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["GaussianStream", "STREAMS", "rng_for"]
+from .rng import STREAMS
 
-STREAMS = {
-    "gyro": 1,
-    "accel": 2,
-    "mocap": 3,
-    "wind": 4,
-    "bias": 5,
-    "baro": 6,
-    "mag": 7,
-    "gnss": 8,
-    "gnss_start": 9,
-}
+__all__ = ["GaussianStream", "STREAMS", "rng_for"]
 
 
 def rng_for(seed: int, stream: str) -> np.random.Generator:

@@ -42,6 +42,10 @@ STREAMS = {
     "mocap": 3,
     "wind": 4,
     "bias": 5,
+    "baro": 6,
+    "mag": 7,
+    "gnss": 8,
+    "gnss_start": 9,
 }
 """A fixed number per random element, so adding an element never changes another's numbers."""
 
