@@ -49,6 +49,7 @@ from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, Positio
 from companion.control.trajectory import PositionReference, ReferenceFilter
 from companion.control.vector import ZERO3, Vec3, sub
 
+from .blind import BlindDescent, blind_start, blind_step, blind_thrust_n, counted_down, learn_bias
 from .flavours import FlavourRules, Mode, rules_for
 from ..plant.vehicle import SimVehicle
 from .sensed import Sensed
@@ -206,7 +207,6 @@ class Autopilot:
 
     POSITION_TIMEOUT_S = 0.5
     """no tracking sample for this long in the air: position lost (PX4's COM_POS_FS_DELAY is 1 s)"""
-    BLIND_DESCENT_M_S = 0.7
     SENSOR_FAILSAFES = (Failsafe.IMU_FAILED, Failsafe.POSITION_LOST, Failsafe.POSITION_LOST_LANDING)
 
     def __init__(self, vehicle: SimVehicle, params: AutopilotParams | None = None) -> None:
@@ -216,11 +216,9 @@ class Autopilot:
         """the vehicle's readings at the newest :meth:`decide` or :meth:`observe`"""
         self.params = params or AutopilotParams()
         self.accel_bias_z_m_s2 = 0.0
-        """vertical accelerometer bias (NED), learnt against the tracking system over ~2 s"""
-        self.blind_vz_m_s = 0.0
-        """vertical speed integrated from the accelerometer while position is lost (NED, + down)"""
-        self._blind_height_m = 0.0
-        self._blind_descended_m = 0.0
+        """vertical accelerometer bias (NED), learnt against the tracking system (sitl.autopilot.blind)"""
+        self.blind: BlindDescent | None = None
+        """the descent on the accelerometer alone, while position is lost"""
         sc = vehicle.scenario
         self.dt = vehicle.dt
         self.pos_div = int(round(sc.plant_rate_hz / sc.position_rate_hz))
@@ -668,14 +666,8 @@ class Autopilot:
         """A failed IMU or lost position in the air: say why once, and land (blind if need be)."""
         v = self.sensed
         if self.failsafe != Failsafe.POSITION_LOST and v.position_age_s < 0.05:  # fresh tracking only
-            # learn the accelerometer's vertical bias against the tracking system, for a blind descent
-            w, x, y, z = v.q_est
-            f = v.imu.specific_force_body_m_s2
-            sf_ned_z = (2.0 * (x * z - w * y) * f[0] + 2.0 * (y * z + w * x) * f[1]
-                        + (w * w - x * x - y * y + z * z) * f[2])  # third row of R(q) times f
             g = self.vehicle.scenario.vehicle.gravity_m_s2
-            self.accel_bias_z_m_s2 += self.dt / 2.0 * (sf_ned_z + g - v.tracked.accel_ned_m_s2[2]
-                                                       - self.accel_bias_z_m_s2)
+            self.accel_bias_z_m_s2 = learn_bias(self.accel_bias_z_m_s2, v, g, self.dt)
         if not self.armed or self.landed:
             return
         if v.imu_failed and v.position_age_s > self.POSITION_TIMEOUT_S:
@@ -692,9 +684,7 @@ class Autopilot:
             if self.mode != Mode.LAND:
                 self._enter(Mode.LAND)
             self.failsafe, self.failsafe_time = Failsafe.POSITION_LOST, self.t
-            self.blind_vz_m_s = float(v.tracked.vel_ned_m_s[2])
-            self._blind_height_m = max(0.0, self.ground_z - float(v.tracked.pos_ned_m[2]))
-            self._blind_descended_m = 0.0
+            self.blind = blind_start(v, self.ground_z)
         elif self.failsafe == Failsafe.POSITION_LOST and v.position_age_s < 0.05:
             self._say(Severity.WARNING, "Position back: landing")  # land where it is, with position
             self.failsafe = Failsafe.POSITION_LOST_LANDING
@@ -841,25 +831,18 @@ class Autopilot:
         return slow + k * (fast - slow)
 
     def _blind_descent(self) -> AttitudeSetpoint:
-        """Level, descending at BLIND_DESCENT_M_S by the accelerometer alone (no position): the
-        vertical speed is integrated from the specific force (less the bias learnt while tracked).
-        Nothing tells touch-down without position (the ground stops the vehicle, the IMU still
-        reads 1 g), so the vehicle counts itself down once the integrated descent exceeds the
-        height it had when position was lost by 30 % + 0.5 m; resting on the ground meanwhile
-        costs nothing (the commanded thrust is below the weight)."""
+        """Level, descending at BLIND_DESCENT_M_S by the accelerometer alone (no position), until it
+        counts itself down (:mod:`sitl.autopilot.blind`)."""
         m = self.vehicle.scenario.vehicle
-        q = self.sensed.q_est
-        sf_ned = quat.rotate(q, self.sensed.imu.specific_force_body_m_s2)
-        self.blind_vz_m_s += (sf_ned[2] + m.gravity_m_s2 - self.accel_bias_z_m_s2) * self.dt
-        vz = self.blind_vz_m_s
-        self._blind_descended_m += max(vz, 0.0) * self.dt
-        if self._blind_descended_m > 1.3 * self._blind_height_m + 0.5:
+        assert self.blind is not None
+        self.blind = d = blind_step(self.blind, self.sensed, self.accel_bias_z_m_s2, m.gravity_m_s2, self.dt)
+        if counted_down(d):
             self.landed, self.touchdown_time = True, self.t
             self._say(Severity.INFO, "Landed (counted down without position)")
             return self._idle_setpoint()
-        thrust = m.mass_kg * (m.gravity_m_s2 - 2.0 * (self.BLIND_DESCENT_M_S - vz))
-        yaw = float(quat.to_euler(q)[2])
-        return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3, min(max(thrust, 0.3 * m.weight_n), m.thrust_max_n))
+        yaw = float(quat.to_euler(self.sensed.q_est)[2])
+        return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3,
+                                blind_thrust_n(d, m.mass_kg, m.gravity_m_s2, m.weight_n, m.thrust_max_n))
 
     def _level_keeping_altitude(self) -> AttitudeSetpoint:
         """GUIDED after GUID_TIMEOUT: level at the current yaw, climb rate zero, drifting freely."""
