@@ -51,6 +51,7 @@ from companion.control.vector import ZERO3, Vec3, sub
 
 from .blind import BlindDescent, blind_start, blind_step, blind_thrust_n, counted_down, learn_bias
 from .flavours import FlavourRules, Mode, rules_for
+from .guided import ShapedAttitude, climb_rate_m_s, guided_target, level_keeping_altitude
 from ..plant.vehicle import SimVehicle
 from .sensed import Sensed
 from .shaping import BRAKE, ShapedReference, ShapingLimits, TrajectoryTarget, at_rest, shape_step
@@ -167,13 +168,6 @@ HOVER_STALE = 0.95
 saved 0.35 and learns about 0.367 in a GUIDED hover (tests/contract)"""
 HOVER_LEARN_TC_S = 10.0
 """the time constant of ArduCopter's hover-throttle learning (AP_MOTORS_THST_HOVER_TC)"""
-
-
-def _angle_boost(q: tuple) -> float:
-    """ArduPilot's throttle boost at the vehicle's tilt: 1 / cos(tilt), the cosine floored at 0.1,
-    fading to 0 past 84 deg (get_throttle_boosted)."""
-    c = math.cos(float(quat.tilt_angle(q)))
-    return min(max(10.0 * c, 0.0), 1.0) / min(max(c, 0.1), 1.0)
 
 
 class CommandResult(NamedTuple):
@@ -413,9 +407,10 @@ class Autopilot:
         self._enter(Mode.TAKEOFF)
         return CommandResult(MavResult.ACCEPTED)
 
-    CLIMB_RATE_MAX_M_S = 2.5
-    """ArduPilot, thrust as climb rate: 0 -> descend at this rate, 0.5 -> hold, 1 -> climb at it"""
     guided_climb_rate_m_s = 0.0
+    """ArduPilot, thrust as climb rate (sitl.autopilot.guided): the newest target's"""
+    _shaped: ShapedAttitude | None = None
+    """ArduPilot, ATC_RATE_FF_ENAB: the shaped target flown (None: none yet, or not shaping)"""
     _guided_flying = False
 
     origin_alt_m = 488.0
@@ -553,7 +548,7 @@ class Autopilot:
         prev = self.offboard_attitude
         t_max = self.vehicle.scenario.vehicle.thrust_max_n
         thrust_n = thrust * t_max if use_thrust else (prev.thrust_n if prev else 0.0)
-        self.guided_climb_rate_m_s = (thrust - 0.5) * 2.0 * self.CLIMB_RATE_MAX_M_S if use_thrust else 0.0
+        self.guided_climb_rate_m_s = climb_rate_m_s(thrust) if use_thrust else 0.0
         rates = tuple(w if u else 0.0 for w, u in zip(body_rates_rad_s, use_rates))
         if use_att:
             n = math.sqrt(sum(c * c for c in q))
@@ -746,8 +741,10 @@ class Autopilot:
                     age = self.t - self.last_setpoint_time
                     sp = AttitudeSetpoint(quat.integrate(sp.q_d, sp.omega_d_rad_s, age), sp.omega_d_rad_s,
                                           sp.thrust_n)
-                return self._guided_target(sp)
-            self._shaped_q = None
+                sp, self._shaped = guided_target(sp, self._shaped, self.sensed, self.params,
+                                                 self.vehicle.scenario.vehicle, self.guided_climb_rate_m_s, self.dt)
+                return sp
+            self._shaped = None
             if self._guided_flying:  # GUID_TIMEOUT: level out and keep the altitude; position is not held
                 self._guided_flying = False
                 self._say(Severity.WARNING, "Guided: attitude target timed out, levelling")
@@ -755,7 +752,7 @@ class Autopilot:
                 self._reset_controllers()
                 return self._idle_setpoint()
             if sp is not None:
-                return self._level_keeping_altitude()
+                return level_keeping_altitude(self.sensed, self.vehicle.scenario.vehicle)
         if self.landed and mode not in (Mode.TAKEOFF, Mode.OFFBOARD, Mode.GUIDED):
             self._reset_controllers()
             return self._idle_setpoint()
@@ -843,57 +840,6 @@ class Autopilot:
         yaw = float(quat.to_euler(self.sensed.q_est)[2])
         return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3,
                                 blind_thrust_n(d, m.mass_kg, m.gravity_m_s2, m.weight_n, m.thrust_max_n))
-
-    def _level_keeping_altitude(self) -> AttitudeSetpoint:
-        """GUIDED after GUID_TIMEOUT: level at the current yaw, climb rate zero, drifting freely."""
-        m = self.vehicle.scenario.vehicle
-        v_up = -self.sensed.tracked.vel_ned_m_s[2]
-        thrust_n = min(max(m.mass_kg * (m.gravity_m_s2 - 2.0 * v_up), 0.0), m.thrust_max_n)
-        yaw = float(quat.to_euler(self.sensed.q_est)[2])
-        return AttitudeSetpoint(quat.from_yaw(yaw), ZERO3, thrust_n)
-
-    def _guided_target(self, sp: AttitudeSetpoint) -> AttitudeSetpoint:
-        """ArduPilot's handling of an attitude target: thrust is throttle with GUID_OPTIONS bit 3,
-        else a climb rate held by a vertical-speed loop. The tilt is *not* limited to ANGLE_MAX
-        (ArduCopter 4.7/4.8 flew 37.6 deg with 30 deg set: tests/autopilots). With ATC_RATE_FF_ENAB
-        the target is shaped first; with ATC_ANGLE_BOOST throttle is boosted by the tilt."""
-        q_d, omega_d = sp.q_d, sp.omega_d_rad_s
-        if self.params.rate_ff_enabled:
-            q_d, omega_d = self._shaped(q_d)
-        else:
-            self._shaped_q = None
-        thrust_n = sp.thrust_n
-        if self.params.guided_thrust_is_throttle and self.params.angle_boost:
-            boosted = thrust_n * _angle_boost(self.sensed.q_est)
-            thrust_n = min(boosted, self.vehicle.scenario.vehicle.thrust_max_n)
-        if not self.params.guided_thrust_is_throttle:
-            v_up = -self.sensed.tracked.vel_ned_m_s[2]
-            m = self.vehicle.scenario.vehicle
-            cos_tilt = max(math.cos(float(quat.tilt_angle(q_d))), 0.3)
-            thrust_n = m.mass_kg * (m.gravity_m_s2 + 2.0 * (self.guided_climb_rate_m_s - v_up)) / cos_tilt
-            thrust_n = min(max(thrust_n, 0.0), m.thrust_max_n)
-        return AttitudeSetpoint(q_d, omega_d, thrust_n)
-
-    def _shaped(self, q_target: tuple) -> tuple[tuple, Vec3]:
-        """ATC_RATE_FF_ENAB: ArduPilot's input shaping, modelled as a critically damped second order
-        of natural frequency 1 / ATC_INPUT_TC (the shaped attitude's acceleration is error / tc^2 -
-        2 rate / tc, limited by ATC_ACCEL_*_MAX), starting from the vehicle's own attitude and rates:
-        a 20 deg roll step turns at most 20 deg / (e tc) = 49 deg/s at tc = 0.15 s. Fitted to the
-        firmware, not copied from it: ArduCopter 4.8 SITL turns at 49 deg/s shaped, 85 deg/s
-        unshaped (tests/contract)."""
-        if self._shaped_q is None:
-            self._shaped_q, self._shaped_omega = self.sensed.q_est, self.sensed.imu.gyro_rad_s
-        q, prev = self._shaped_q, self._shaped_omega
-        err = quat.log(quat.relative(q, q_target))
-        tc = max(self.params.input_tc_s, self.dt)
-        step = self.params.input_accel_max_rad_s2 * self.dt
-        omega: Vec3 = tuple(w + min(max((float(e) / tc - 2.0 * w) / tc * self.dt, -step), step)  # type: ignore[assignment]
-                            for e, w in zip(err, prev))
-        self._shaped_q, self._shaped_omega = quat.integrate(q, omega, self.dt), omega
-        return self._shaped_q, omega
-
-    _shaped_q: tuple | None = None
-    _shaped_omega: Vec3 = ZERO3
 
     def _rate_reference(self, omega_d: Vec3) -> tuple:
         """Rates-only setpoints are flown as an attitude reference integrated from the commanded
