@@ -739,6 +739,9 @@ def fly_batch(family: type, rows: NDArray[np.float64], forces: NDArray[np.float6
     neither the split nor the path changes a number. Threads rather than numba's ``parallel=True``:
     the same speed on this machine, ~4 s less to compile, and no threading layer (numba's OpenMP
     cannot survive a fork(); docs/benchmarks.md)."""
+    if rows.shape[1] != flight_codec(family).size:
+        raise ValueError(f"rows of {rows.shape[1]} numbers: {family.__name__}'s flights have "
+                         f"{flight_codec(family).size} (rows packed for another family?)")
     if rows.shape[0] >= lanes.W and lanes_apply(family, rows):
         _fly_in_lanes(family, rows, forces, torques, waypoints, steps, logs, final, threads)
         return
