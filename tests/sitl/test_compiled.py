@@ -176,3 +176,13 @@ def test_a_batch_that_differs_in_a_shared_number_flies_one_by_one_with_the_same_
         one_log, one_final = np.empty((1, n_log, len(LOG_COLUMNS))), np.empty((1, 3))
         K.fly_one_by_one(DoConst, rows[i:i + 1], *arrays, steps, one_log, one_final)
         np.testing.assert_array_equal(batch_log[i], one_log[0])
+
+
+def test_codecs_of_different_structures_name_their_compiled_functions_apart():
+    """Compiled code keeps a function by its name and argument types: two families' unpacks (same
+    arguments) compiled in different processes and loaded from the disk cache into one must not
+    share a name, or one family's flight would be unpacked by the other's code."""
+    from sitl.plant import kernel as K
+
+    names = [K.flight_codec(f).unpack.__name__ for f in K._CODECS]
+    assert len(set(names)) == len(names) == 3
