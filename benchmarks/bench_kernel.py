@@ -39,6 +39,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from companion.control.position import DoConst  # noqa: E402
 from sitl.lab.simulation import Simulation, simulate_compiled  # noqa: E402
 from sitl.plant import kernel as K  # noqa: E402
 from sitl.plant.scenario import load_scenario  # noqa: E402
@@ -69,7 +70,8 @@ def one_vehicle(duration_s: float, repeat: int) -> None:
 def _batch_rows(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     sc = load_scenario(SCENARIO)
     consts = [K.flight_const(sc, "ism_do", "ism_do", s) for s in range(1, n + 1)]
-    return np.array([K.FLIGHT_CODEC.pack(c) for c in consts]), K.FLIGHT_CODEC.arrays(consts[0])
+    codec = K.flight_codec(K.position_family(consts[0]))
+    return np.array([codec.pack(c) for c in consts]), codec.arrays(consts[0])
 
 
 def compiled_batch(n: int, duration_s: float, threads: int | None = None,
@@ -80,9 +82,9 @@ def compiled_batch(n: int, duration_s: float, threads: int | None = None,
     steps = int(duration_s * 1000)
     logs, final = np.empty((n, 0, len(K.LOG_COLUMNS))), np.empty((n, 3))
     fly = K.fly_batch if layout == "lanes" else K.fly_one_by_one
-    fly(rows[:8], *arrays, 1, logs[:8], final[:8])  # load (or compile) the kernel
+    fly(DoConst, rows[:8], *arrays, 1, logs[:8], final[:8])  # load (or compile) the kernel
     c0, t0 = time.process_time(), time.perf_counter()
-    fly(rows, *arrays, steps, logs, final, threads)
+    fly(DoConst, rows, *arrays, steps, logs, final, threads)
     return time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -144,12 +146,14 @@ sc = load_scenario("E3_wind")
 n, engine = int(sys.argv[1]), sys.argv[2]
 Simulation(sc, "ism_do", "ism_do", [1, 2]).run(0.01)  # imports and first-use allocations
 c1 = K.flight_const(sc, "ism_do", "ism_do", 1)
-K.fly_batch(np.array([K.FLIGHT_CODEC.pack(c1)]), *K.FLIGHT_CODEC.arrays(c1), 10, np.empty((1, 0, 53)), np.empty((1, 3)))
+codec = K.flight_codec(K.position_family(c1))
+K.fly_batch(K.position_family(c1), np.array([codec.pack(c1)]), *codec.arrays(c1), 10, np.empty((1, 0, 53)),
+            np.empty((1, 3)))
 before = rss()
 if engine == "compiled":
-    rows = np.array([K.FLIGHT_CODEC.pack(K.flight_const(sc, "ism_do", "ism_do", s)) for s in range(1, n + 1)])
+    rows = np.array([codec.pack(K.flight_const(sc, "ism_do", "ism_do", s)) for s in range(1, n + 1)])
     logs, final = np.empty((n, 0, len(K.LOG_COLUMNS))), np.empty((n, 3))
-    K.fly_batch(rows, *K.FLIGHT_CODEC.arrays(c1), 200, logs, final)
+    K.fly_batch(K.position_family(c1), rows, *codec.arrays(c1), 200, logs, final)
 else:
     sim = Simulation(sc, "ism_do", "ism_do", list(range(1, n + 1)))
     for _ in range(200):
@@ -169,7 +173,8 @@ def memory() -> None:
     for engine in ("objects", "compiled"):
         grow = rss_growth(4000, engine)
         print(f"{engine:>10}: {grow / 4000:>9,.0f} B per vehicle ({grow / 2**20:.1f} MB for 4000)")
-    print(f"  compiled, by construction: {K.FLIGHT_CODEC.size * 8} B of constants per vehicle (a FLIGHT_CODEC row) "
+    print(f"  compiled, by construction: {K.flight_codec(DoConst).size * 8} B of constants per vehicle "
+          f"(a flight_codec row of PD+DO, ISM+DO or INDI) "
           f"+ 24 B of result; the state (164 numbers, 1312 B) lives on its thread's stack")
 
 

@@ -8,11 +8,13 @@ but NumPy (docs/benchmarks.md, "the companion's loop", has the measurement behin
 
 A kernel (the simulator's vehicle step and its batch loop, ``sitl``) is built with
 :func:`kernel`, which calls :func:`register_with_numba` first: every :func:`jitable` function
-becomes callable from compiled code (``numba.extending.register_jitable``), and each of the few
+becomes callable from compiled code (``numba.extending.register_jitable``), each of the few
 element-wise helpers that pick float-or-array at run time (:func:`float_form`) gets its float
-implementation. ``NUMBA_DISABLE_JIT=1`` turns every kernel back into its Python function, so the
-same source runs both ways (``tests/sitl/test_compiled.py`` holds the two within 1e-12 over an E3
-flight).
+implementation, and each entry that stands for several laws (:func:`chosen_by_type`: one step
+function per type of constants) calls the law of its argument's type, chosen when the compiled
+caller is compiled (``numba.extending.overload``). ``NUMBA_DISABLE_JIT=1`` turns every kernel
+back into its Python function, so the same source runs both ways (``tests/sitl/test_compiled.py``
+holds the two within 1e-12 over an E3 flight).
 
 Compiled kernels are cached on disk (``cache=True``) in a folder named after a digest of the
 sources they are compiled from (:func:`cache_dir`): numba's own cache only watches the file of
@@ -24,17 +26,18 @@ from __future__ import annotations
 import hashlib
 import os
 from pathlib import Path
-from typing import Any, Callable, TypeVar
+from typing import Any, Callable, Mapping, TypeVar
 
-__all__ = ["jitable", "float_form", "lanewise", "kernel", "register_with_numba", "numba_available", "cache_dir",
-           "SOURCES", "depends_on", "KERNEL_OPT", "float_forms", "lanewise_functions"]
+__all__ = ["jitable", "chosen_by_type", "float_form", "lanewise", "kernel", "register_with_numba", "numba_available",
+           "cache_dir", "SOURCES", "depends_on", "KERNEL_OPT", "float_forms", "lanewise_functions"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 _JITABLE: list[Callable[..., Any]] = []
 _FLOAT_FORMS: list[tuple[Callable[..., Any], Callable[..., Any]]] = []
 _LANEWISE: list[Callable[..., Any]] = []
-_registered = (0, 0, 0)
+_BY_TYPE: list[tuple[Callable[..., Any], Mapping[type, Callable[..., Any]]]] = []
+_registered = (0, 0, 0, 0)
 
 SOURCES: list[Path] = [Path(__file__).parent]
 """Folders (or files) whose ``.py`` sources compiled kernels depend on (:func:`depends_on`)."""
@@ -51,6 +54,19 @@ def jitable(fn: F) -> F:
     """Mark ``fn`` as compilable by numba when a kernel calls it; returns ``fn`` itself."""
     _JITABLE.append(fn)
     return fn
+
+
+def chosen_by_type(laws: Mapping[type, Callable[..., Any]]) -> Callable[[F], F]:
+    """Mark the decorated ``fn(c, ...)`` as the entry to ``laws[type(c)](c, ...)``: ``c`` is the
+    constants of one of several laws, each a NamedTuple type of its own. Interpreted, ``fn``'s body
+    makes the choice; compiled, it is made once, from ``c``'s type, when the caller is compiled, so a
+    kernel is specialised on the law it runs and the others cost it nothing."""
+
+    def wrap(fn: F) -> F:
+        _BY_TYPE.append((fn, laws))
+        return fn
+
+    return wrap
 
 
 def float_form(impl: Callable[..., Any]) -> Callable[[F], F]:
@@ -115,8 +131,9 @@ def cache_dir() -> Path:
 
 
 def register_with_numba() -> None:
-    """Make every :func:`jitable` function and :func:`float_form` callable from compiled code
-    (those marked since the last call: a module imported later registers its own)."""
+    """Make every :func:`jitable` function, :func:`float_form` and :func:`chosen_by_type` entry
+    callable from compiled code (those marked since the last call: a module imported later
+    registers its own)."""
     global _registered
     from numba.extending import overload, register_jitable
 
@@ -126,7 +143,18 @@ def register_with_numba() -> None:
         register_jitable(fn)
     for fn in _LANEWISE[_registered[2]:]:
         overload(fn, jit_options={}, strict=False)(_returning(fn))
-    _registered = (len(_FLOAT_FORMS), len(_JITABLE), len(_LANEWISE))
+    for fn, laws in _BY_TYPE[_registered[3]:]:
+        overload(fn, jit_options={}, strict=False)(_law_of_type(laws))
+    _registered = (len(_FLOAT_FORMS), len(_JITABLE), len(_LANEWISE), len(_BY_TYPE))
+
+
+def _law_of_type(laws: Mapping[type, Callable[..., Any]]) -> Callable[..., Any]:
+    """The typer of a :func:`chosen_by_type` entry: the law of the first argument's NamedTuple class
+    (the same class whether its numbers are floats or lanes)."""
+    def typer(c: Any, *args: Any) -> Callable[..., Any] | None:
+        return laws.get(getattr(c, "instance_class", None))  # type: ignore[arg-type]
+
+    return typer
 
 
 def _returning(impl: Callable[..., Any]) -> Callable[..., Any]:

@@ -1,5 +1,10 @@
 """Position controllers computing the inertial control force f [N] (section IV, section V).
 
+Three families, each a const record holding only what its law uses and a step function over it:
+:class:`PidConst` (:func:`pid_step`), :class:`AibcConst` (:func:`aibc_step`) and :class:`DoConst`
+(:func:`do_step`: PD+DO, ISM+DO and INDI, which differ in the force observer's filter order and in
+whether (31) is added). :func:`position_step` runs the step of its constants' type.
+
 All four share the PID's local closed-loop gains (section V): ``K_v = 2 omega_c``,
 ``K_p = omega_c^2``, ``K_i = omega_c / 4``::
 
@@ -39,12 +44,12 @@ literal reading for comparison.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 
 from .attitude import _integrate_with_reset
-from .jit import jitable
+from .jit import chosen_by_type, jitable
 from .names import controllers_for
 from .observers import (
     ForceObserverConst,
@@ -78,16 +83,24 @@ __all__ = [
     "aibc_coefficients_per_vehicle",
     "nominal_force",
     "PositionConst",
+    "PidConst",
+    "AibcConst",
+    "DoConst",
     "PositionState",
     "position_const",
+    "pid_const",
+    "aibc_const",
+    "do_const",
     "position_init",
     "position_step",
+    "pid_step",
+    "aibc_step",
+    "do_step",
+    "STEPS",
     "PositionController",
 ]
 
 POSITION_CONTROLLERS = controllers_for("position")
-PID, AIBC, PD_DO, ISM_DO, INDI = (POSITION_CONTROLLERS.index(n) for n in ("pid", "aibc", "pd_do", "ism_do", "indi"))
-"""``PositionConst.kind``: the index in POSITION_CONTROLLERS (the registry, companion/control/names.py)."""
 
 
 def aibc_coefficients(omega_c_rad_s: float) -> tuple[float, float, float]:
@@ -136,27 +149,59 @@ def nominal_force(
     )
 
 
-class PositionConst(NamedTuple):
-    """What :func:`position_step` needs besides its state: gains derived for one step length."""
+class PidConst(NamedTuple):
+    """What :func:`pid_step` needs besides its state: the PID's gains for one step length."""
 
-    kind: int
     mass_kg: Real
     gravity_m_s2: float
     k_p: Vec3
     k_v: Vec3
     k_i: Vec3
-    aibc_p: Vec3
-    aibc_v: Vec3
-    aibc_i: Vec3
-    aibc_velocity_feedback: bool
-    aibc_gamma_per_s: Vec3
-    k_f: Vec3
-    eps: Vec3
     anti_windup: bool
     integral_limit_m_s2: float
-    observer: ForceObserverConst
-    aibc_observer: MomentumConst
     dt_s: float
+
+
+class AibcConst(NamedTuple):
+    """What :func:`aibc_step` needs besides its state. ``k_p``, ``k_v``, ``k_i`` are the
+    backstepping's ``1 + lam + c1 c2``, ``c1 + c2``, ``c2 lam`` (:func:`aibc_coefficients`)."""
+
+    mass_kg: Real
+    gravity_m_s2: float
+    k_p: Vec3
+    k_v: Vec3
+    k_i: Vec3
+    anti_windup: bool
+    integral_limit_m_s2: float
+    velocity_feedback: bool
+    """``h = m0 gamma v~`` (the literal reading) instead of the observer"""
+    gamma_per_s: Vec3
+    observer: MomentumConst
+    """the velocity-error observer of bandwidth gamma [1/s]"""
+    dt_s: float
+
+
+class DoConst(NamedTuple):
+    """What :func:`do_step` needs besides its state: PD+DO, ISM+DO and INDI, which differ in the
+    force observer's filter order (1, or 2 for INDI) and in whether the sliding term (31) is added."""
+
+    mass_kg: Real
+    gravity_m_s2: float
+    k_p: Vec3
+    k_v: Vec3
+    observer: ForceObserverConst
+    sliding: bool
+    """add ``K_f sat(s_p / eps_p)`` (31): ISM+DO"""
+    k_f: Vec3
+    """[N]"""
+    eps: Vec3
+    """boundary layer [m/s]"""
+    anti_windup: bool
+    dt_s: float
+
+
+PositionConst = PidConst | AibcConst | DoConst
+"""The constants of one of POSITION_CONTROLLERS; their type picks the step (:func:`position_step`)."""
 
 
 class PositionState(NamedTuple):
@@ -173,46 +218,73 @@ class PositionState(NamedTuple):
 
 
 def position_const(kind: str, gains: PositionGains, mass_kg: Real, gravity_m_s2: float, dt_s: float) -> PositionConst:
+    """The constants of position controller ``kind`` (a name of POSITION_CONTROLLERS) for steps of ``dt_s``."""
     if kind not in POSITION_CONTROLLERS:
         raise ValueError(f"unknown position controller {kind!r}; expected one of {POSITION_CONTROLLERS}")
+    return _BUILDERS[kind](gains, mass_kg, gravity_m_s2, dt_s)
+
+
+def pid_const(gains: PositionGains, mass_kg: Real, gravity_m_s2: float, dt_s: float) -> PidConst:
     g = gains
-    matching = matching_const(g.observer_match_delay_s, g.observer_match_cutoff_hz, g.observer_match_order, dt_s)
-    observer = force_observer_const(mass_kg, g.observer_gain_rad_s, 1, matching, dt_s)
-    if kind == "indi":  # INDI: the same measurement, through a second-order filter
-        observer = force_observer_const(mass_kg, g.indi_filter_rad_s, 2, matching, dt_s)
+    return PidConst(mass_kg, gravity_m_s2, g.k_p(), g.k_v(), g.k_i(), g.anti_windup, g.integral_limit_m_s2, dt_s)
+
+
+def aibc_const(gains: PositionGains, mass_kg: Real, gravity_m_s2: float, dt_s: float) -> AibcConst:
+    g = gains
+    coeffs = [aibc_coefficients_per_vehicle(w) for w in g.omega_c_rad_s]
+    c1 = tuple(c[0] for c in coeffs)
+    c2 = tuple(c[1] for c in coeffs)
+    lam = tuple(c[2] for c in coeffs)
     # the velocity has one difference and one filter less than the acceleration
     vel_matching = matching_const(g.observer_match_delay_s, g.observer_match_cutoff_hz,
                                   max(g.observer_match_order - 1, 0), dt_s)
-    aibc_p = aibc_v = aibc_i = ZERO3
-    if kind == "aibc":
-        coeffs = [aibc_coefficients_per_vehicle(w) for w in g.omega_c_rad_s]
-        c1 = tuple(c[0] for c in coeffs)
-        c2 = tuple(c[1] for c in coeffs)
-        lam = tuple(c[2] for c in coeffs)
-        aibc_p = tuple(1.0 + lam[i] + c1[i] * c2[i] for i in range(3))  # type: ignore[assignment]
-        aibc_v = tuple(c1[i] + c2[i] for i in range(3))  # type: ignore[assignment]
-        aibc_i = tuple(c2[i] * lam[i] for i in range(3))  # type: ignore[assignment]
-    eps = g.boundary_layer_m_s
-    return PositionConst(
-        kind=POSITION_CONTROLLERS.index(kind),
+    return AibcConst(
         mass_kg=mass_kg,
         gravity_m_s2=gravity_m_s2,
-        k_p=g.k_p(),
-        k_v=g.k_v(),
-        k_i=g.k_i(),
-        aibc_p=aibc_p,
-        aibc_v=aibc_v,
-        aibc_i=aibc_i,
-        aibc_velocity_feedback=g.aibc_estimate == "velocity_feedback",
-        aibc_gamma_per_s=g.aibc_gamma_per_s,
-        k_f=mul(scale(mass_kg, g.sliding_gain_rad_s), eps),  # K_f = k_s m0 eps
-        eps=eps,
+        k_p=tuple(1.0 + lam[i] + c1[i] * c2[i] for i in range(3)),  # type: ignore[arg-type]
+        k_v=tuple(c1[i] + c2[i] for i in range(3)),  # type: ignore[arg-type]
+        k_i=tuple(c2[i] * lam[i] for i in range(3)),  # type: ignore[arg-type]
         anti_windup=g.anti_windup,
         integral_limit_m_s2=g.integral_limit_m_s2,
-        observer=observer,
-        aibc_observer=MomentumConst(mass_kg, g.aibc_gamma_per_s, vel_matching),
+        velocity_feedback=g.aibc_estimate == "velocity_feedback",
+        gamma_per_s=g.aibc_gamma_per_s,
+        observer=MomentumConst(mass_kg, g.aibc_gamma_per_s, vel_matching),
         dt_s=dt_s,
     )
+
+
+def do_const(observer_order: int, sliding: bool) -> Callable[[PositionGains, Real, float, float], DoConst]:
+    """The builder of a disturbance-observer controller: the observer's filter order (2: INDI's
+    second-order filter at ``indi_filter_rad_s``) and whether (31) is added."""
+
+    def build(gains: PositionGains, mass_kg: Real, gravity_m_s2: float, dt_s: float) -> DoConst:
+        g = gains
+        matching = matching_const(g.observer_match_delay_s, g.observer_match_cutoff_hz, g.observer_match_order, dt_s)
+        bandwidth = g.indi_filter_rad_s if observer_order == 2 else g.observer_gain_rad_s
+        eps = g.boundary_layer_m_s
+        return DoConst(
+            mass_kg=mass_kg,
+            gravity_m_s2=gravity_m_s2,
+            k_p=g.k_p(),
+            k_v=g.k_v(),
+            observer=force_observer_const(mass_kg, bandwidth, observer_order, matching, dt_s),
+            sliding=sliding,
+            k_f=mul(scale(mass_kg, g.sliding_gain_rad_s), eps),  # K_f = k_s m0 eps
+            eps=eps,
+            anti_windup=g.anti_windup,
+            dt_s=dt_s,
+        )
+
+    return build
+
+
+_BUILDERS: dict[str, Callable[[PositionGains, Real, float, float], PositionConst]] = {
+    "pid": pid_const,
+    "aibc": aibc_const,
+    "pd_do": do_const(1, sliding=False),
+    "ism_do": do_const(1, sliding=True),
+    "indi": do_const(2, sliding=False),
+}
 
 
 @jitable
@@ -221,6 +293,60 @@ def position_init() -> PositionState:
 
 
 @jitable
+def pid_step(c: PidConst, st: PositionState, pos_err_m: Vec3, vel_err_m_s: Vec3, accel_ref_m_s2: Vec3,
+             specific_force_ned_m_s2: Vec3, has_specific_force: bool,
+             force_applied_prev_n: Vec3) -> tuple[PositionState, Vec3]:
+    """PID: ``f = f0 - m0 K_i xi``  (29) with the integral; the specific force is not used."""
+    m0 = c.mass_kg
+    f = nominal_force(m0, c.gravity_m_s2, accel_ref_m_s2, pos_err_m, vel_err_m_s, c.k_p, c.k_v)
+    xi, integral = _integrate(c, st.xi, pos_err_m, c.k_i)
+    estimate = scale(m0, integral)
+    return PositionState(xi, st.z, st.s, estimate, st.started, st.observer, st.aibc_observer), sub(f, estimate)
+
+
+@jitable
+def aibc_step(c: AibcConst, st: PositionState, pos_err_m: Vec3, vel_err_m_s: Vec3, accel_ref_m_s2: Vec3,
+              specific_force_ned_m_s2: Vec3, has_specific_force: bool,
+              force_applied_prev_n: Vec3) -> tuple[PositionState, Vec3]:
+    """AIBC: ``f = m0 (r_dd_d - g e3 - (1 + lam + c1 c2) r~ - (c1 + c2) v~ - c2 lam xi) - h``."""
+    m0, g = c.mass_kg, c.gravity_m_s2
+    f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, c.k_p, c.k_v)
+    xi, integral = _integrate(c, st.xi, pos_err_m, c.k_i)
+    aibc_observer = st.aibc_observer
+    if c.velocity_feedback:
+        estimate = scale(m0, mul(c.gamma_per_s, vel_err_m_s))
+    else:  # the velocity-error model: v~' = f / m0 + g e3 - r_dd_d + h / m0
+        known = (-accel_ref_m_s2[0], -accel_ref_m_s2[1], g - accel_ref_m_s2[2])
+        aibc_observer = momentum_step(c.observer, aibc_observer, vel_err_m_s, force_applied_prev_n, known, c.dt_s)
+        estimate = aibc_observer.estimate_n
+    st = PositionState(xi, st.z, st.s, estimate, st.started, st.observer, aibc_observer)
+    return st, sub(sub(f, scale(m0, integral)), estimate)
+
+
+@jitable
+def do_step(c: DoConst, st: PositionState, pos_err_m: Vec3, vel_err_m_s: Vec3, accel_ref_m_s2: Vec3,
+            specific_force_ned_m_s2: Vec3, has_specific_force: bool,
+            force_applied_prev_n: Vec3) -> tuple[PositionState, Vec3]:
+    """PD+DO and INDI ``f = f0 - h_f_hat``  (29), (30); ISM+DO adds ``- K_f sat(s_p / eps_p)``  (31)."""
+    f = nominal_force(c.mass_kg, c.gravity_m_s2, accel_ref_m_s2, pos_err_m, vel_err_m_s, c.k_p, c.k_v)
+    observer, estimate = st.observer, st.estimate_n
+    if has_specific_force:
+        observer = force_observer_step(c.observer, observer, specific_force_ned_m_s2, force_applied_prev_n, ZERO3)
+        estimate = observer.estimate_n
+    f = sub(f, estimate)
+    z, s, started = st.z, st.s, st.started
+    if c.sliding:
+        z, s, started, term = _sliding_term(c, z, started, pos_err_m, vel_err_m_s)
+        f = sub(f, term)
+    return PositionState(st.xi, z, s, estimate, started, observer, st.aibc_observer), f
+
+
+STEPS: dict[type, Callable[..., tuple[PositionState, Vec3]]] = {PidConst: pid_step, AibcConst: aibc_step,
+                                                               DoConst: do_step}
+"""Each const record's step function."""
+
+
+@chosen_by_type(STEPS)
 def position_step(
     c: PositionConst,
     st: PositionState,
@@ -231,47 +357,21 @@ def position_step(
     has_specific_force: bool,
     force_applied_prev_n: Vec3,
 ) -> tuple[PositionState, Vec3]:
-    """One position step: the new state and the force f [N, NED].
+    """One position step of the controller whose constants ``c`` are: the new state and the force
+    f [N, NED]. The step is the one of ``c``'s type (:data:`STEPS`); compiled, it is chosen once,
+    when the caller is compiled (:func:`~.jit.chosen_by_type`).
 
     ``specific_force_ned_m_s2`` is ``r_dd - g e3`` (accelerometer rotated to NED, or differentiated
     position minus gravity; ignored unless ``has_specific_force``), ``force_applied_prev_n`` the
     previous step's force as the gains' ``force_source`` asks
     (:func:`~companion.control.outer_loop.observer_force`): the force observer's inputs (30).
     """
-    kind, m0, g, dt_s = c.kind, c.mass_kg, c.gravity_m_s2, c.dt_s
-    if kind == PID:
-        f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, c.k_p, c.k_v)
-        xi, integral = _integrate(c, st.xi, pos_err_m, c.k_i)
-        estimate = scale(m0, integral)
-        return PositionState(xi, st.z, st.s, estimate, st.started, st.observer, st.aibc_observer), sub(f, estimate)
-    if kind == AIBC:
-        f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, c.aibc_p, c.aibc_v)
-        xi, integral = _integrate(c, st.xi, pos_err_m, c.aibc_i)
-        aibc_observer = st.aibc_observer
-        if c.aibc_velocity_feedback:
-            estimate = scale(m0, mul(c.aibc_gamma_per_s, vel_err_m_s))
-        else:  # the velocity-error model: v~' = f / m0 + g e3 - r_dd_d + h / m0
-            known = (-accel_ref_m_s2[0], -accel_ref_m_s2[1], g - accel_ref_m_s2[2])
-            aibc_observer = momentum_step(c.aibc_observer, aibc_observer, vel_err_m_s, force_applied_prev_n, known,
-                                          dt_s)
-            estimate = aibc_observer.estimate_n
-        st = PositionState(xi, st.z, st.s, estimate, st.started, st.observer, aibc_observer)
-        return st, sub(sub(f, scale(m0, integral)), estimate)
-    f = nominal_force(m0, g, accel_ref_m_s2, pos_err_m, vel_err_m_s, c.k_p, c.k_v)
-    observer, estimate = st.observer, st.estimate_n
-    if has_specific_force:
-        observer = force_observer_step(c.observer, observer, specific_force_ned_m_s2, force_applied_prev_n, ZERO3)
-        estimate = observer.estimate_n
-    f = sub(f, estimate)
-    z, s, started = st.z, st.s, st.started
-    if kind == ISM_DO:
-        z, s, started, term = _sliding_term(c, z, started, pos_err_m, vel_err_m_s)
-        f = sub(f, term)
-    return PositionState(st.xi, z, s, estimate, started, observer, st.aibc_observer), f
+    return STEPS[type(c)](c, st, pos_err_m, vel_err_m_s, accel_ref_m_s2, specific_force_ned_m_s2,
+                          has_specific_force, force_applied_prev_n)
 
 
 @jitable
-def _integrate(c: PositionConst, xi: Vec3, pos_err_m: Vec3, k_i: Vec3) -> tuple[Vec3, Vec3]:
+def _integrate(c: PidConst | AibcConst, xi: Vec3, pos_err_m: Vec3, k_i: Vec3) -> tuple[Vec3, Vec3]:
     """``(xi, K_i xi)`` after one step, each element held within ``integral_limit_m_s2`` (anti-windup)."""
     xi = add(xi, scale(c.dt_s, pos_err_m))
     if c.anti_windup:
@@ -285,7 +385,7 @@ def _integrate(c: PositionConst, xi: Vec3, pos_err_m: Vec3, k_i: Vec3) -> tuple[
 
 
 @jitable
-def _sliding_term(c: PositionConst, z: Vec3, started: bool, pos_err_m: Vec3,
+def _sliding_term(c: DoConst, z: Vec3, started: bool, pos_err_m: Vec3,
                   vel_err_m_s: Vec3) -> tuple[Vec3, Vec3, bool, Vec3]:
     """``K_f sat(s_p / eps_p)``, ``s_p = v~ + K_v r~ + int K_p r~ - v~(0) - K_v r~(0)``  (31).
 
@@ -308,7 +408,8 @@ class PositionController(Stepper[PositionConst]):
     ``specific_force_ned`` is ``r_dd - g e3`` (accelerometer rotated to NED, or differentiated
     position minus gravity), ``force_applied_prev_n`` the previous step's force as the gains'
     ``force_source`` asks (:func:`~companion.control.outer_loop.observer_force`): the force
-    observer's inputs (30). A thin wrapper around :func:`position_step` holding its state.
+    observer's inputs (30). A thin wrapper around :func:`position_step` holding its state; the
+    type of its constants (:func:`position_const`) picks the step function.
     """
 
     kind: str

@@ -208,7 +208,8 @@ def simulate_compiled(scenario: Scenario, position: str, attitude: str, seeds: i
     seed_list = [int(s) for s in seeds] if batch else [int(seeds)]  # type: ignore[union-attr]
     consts = [kernel.flight_const(_scenario_of_vehicle(sc, i) if batch else sc, position, attitude, s)
               for i, s in enumerate(seed_list)]
-    codec = kernel.FLIGHT_CODEC
+    family = kernel.position_family(consts[0])
+    codec = kernel.flight_codec(family)
     arrays = codec.arrays(consts[0])
     if any(not all(np.array_equal(a, b) for a, b in zip(arrays, codec.arrays(c))) for c in consts[1:]):
         raise ValueError("a batch shares its force and torque profiles and waypoints")
@@ -217,7 +218,7 @@ def simulate_compiled(scenario: Scenario, position: str, attitude: str, seeds: i
     n_log = -(-steps // consts[0].log_div)
     logs = np.empty((len(consts), n_log, len(LOG_COLUMNS)))
     final = np.empty((len(consts), 3))
-    kernel.fly_batch(rows, *arrays, steps, logs, final)
+    kernel.fly_batch(family, rows, *arrays, steps, logs, final)
     if batch:
         cols = {name: logs[:, :, i].T.copy() for i, name in enumerate(LOG_COLUMNS)}
         cols["t"] = logs[0, :, 0].copy()

@@ -20,6 +20,7 @@ columns that must then hold one value for the whole batch).
 
 from __future__ import annotations
 
+import hashlib
 from typing import Any, Callable, NamedTuple
 
 import numpy as np
@@ -102,14 +103,18 @@ def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tup
 
     expr, lanes_expr = build(shape, "")
     params = "".join(f", a{i}" for i in range(n_arrays[0]))
-    src = (f"def unpack(row{params}):\n    return {expr}\n\n"
-           f"def unpack_lanes(cols, i0{params}):\n    return {lanes_expr}\n")
+    # named after the structure: compiled code keeps a function by its name and argument types, and
+    # two codecs' unpacks (same arguments, different tuples) compiled in different processes must
+    # not meet under one name in a process that loads both from the disk cache
+    tag = hashlib.sha256(repr(key).encode()).hexdigest()[:12]
+    src = (f"def unpack_{tag}(row{params}):\n    return {expr}\n\n"
+           f"def unpack_lanes_{tag}(cols, i0{params}):\n    return {lanes_expr}\n")
     from .lanes import load, load_int
 
     scope: dict[str, Any] = dict(names, load=load, load_int=load_int)
     exec(compile(src, f"<codec of {type(example).__name__}>", "exec"), scope)  # noqa: S102
-    unpack = jitable(scope["unpack"])
-    unpack_lanes = jitable(scope["unpack_lanes"])
+    unpack = jitable(scope[f"unpack_{tag}"])
+    unpack_lanes = jitable(scope[f"unpack_lanes_{tag}"])
 
     def pack(value: Any) -> list[float]:
         out: list[float] = []

@@ -41,7 +41,7 @@ from companion.control.attitude import (
     attitude_init,
     attitude_step,
 )
-from companion.control.jit import depends_on, jitable, kernel, numba_available
+from companion.control.jit import chosen_by_type, depends_on, jitable, kernel, numba_available
 from companion.control.outer_loop import (
     AttitudeSetpoint,
     LoopConst,
@@ -49,7 +49,7 @@ from companion.control.outer_loop import (
     loop_const,
     position_loop_step,
 )
-from companion.control.position import position_const, position_init
+from companion.control.position import STEPS, PositionConst, position_const, position_init
 from companion.control.quaternion import Quat
 from companion.control.reference import rate_const, rate_init
 from companion.control.trajectory import PositionReference, ReferenceState, TrajectoryConst, reference_filter_step
@@ -57,7 +57,7 @@ from companion.control.vector import ZERO3, Vec3, lowpass_alpha
 
 from . import lanes, rng
 from .body import Forces, PlantConst, RigidBody, plant_const, plant_step
-from .codec import codec
+from .codec import Codec, codec
 from .disturbances import PROFILE_KINDS, profile_factor
 from .onboard import command_level, estimator_correct
 from .sensors import MocapSample, differentiated, imu_reading, tracked_pose
@@ -71,7 +71,8 @@ __all__ = [
     "WindConst", "WindState", "wind_const", "wind_init", "wind_step",
     "profiles_array", "profiles_at",
     "VehicleConst", "VehicleState", "vehicle_const", "vehicle_init", "vehicle_step",
-    "FlightConst", "flight_const", "LOG_COLUMNS", "fly_loop", "FLIGHT_CODEC", "fly_many", "fly_compiled",
+    "FlightConst", "flight_const", "LOG_COLUMNS", "fly_loop", "position_family", "flight_codec", "fly_many",
+    "fly_compiled",
     "fly_batch", "fly_one_by_one", "fly_lanes", "fly_lanes_compiled", "lanes_apply", "PER_VEHICLE", "cores",
 ]
 
@@ -603,10 +604,10 @@ def _log_values(vc: VehicleConst, st: VehicleState, ref: PositionReference, sp: 
     return vals
 
 
-def _example() -> FlightConst:
-    from .scenario import Scenario
-
-    return flight_const(Scenario(name="codec"), "ism_do", "ism_do", 1)
+def position_family(c: FlightConst) -> type:
+    """The type of ``c``'s position constants (:data:`~companion.control.position.STEPS`): the
+    controller family a batch's rows are packed for and its compiled loop is specialised on."""
+    return type(c.loop.position)
 
 
 PER_VEHICLE = ("vehicle.sensors.gyro_bias_rad_s", "vehicle.sensors.accel_bias_m_s2", "vehicle.attitude",
@@ -617,35 +618,89 @@ seed draws (the sensor biases; the noise keys, :data:`PER_VEHICLE_KEYS`) and the
 PER_VEHICLE_KEYS = ("vehicle.sensors.gyro_keys", "vehicle.sensors.accel_keys", "vehicle.sensors.mocap_keys",
                     "vehicle.wind.keys", "vehicle.wind.init_keys")
 
-FLIGHT_CODEC = codec(_example(), PER_VEHICLE, PER_VEHICLE_KEYS)
-"""Per-vehicle rows of a batch: every number of a :class:`FlightConst`; its arrays (the force and
-torque profiles, the waypoints: ``FLIGHT_CODEC.arrays(c)``) are the batch's."""
-_unpack_flight = FLIGHT_CODEC.unpack
-_unpack_lanes = FLIGHT_CODEC.unpack_lanes
+
+def _example(position_kind: str) -> FlightConst:
+    from .scenario import Scenario
+
+    return flight_const(Scenario(name="codec"), position_kind, "ism_do", 1)
 
 
-def fly_many(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
-             waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
+_EXAMPLES = {position_family(c): c for c in map(_example, ("pid", "aibc", "ism_do"))}
+assert set(_EXAMPLES) == set(STEPS), "an example flight for each family of position controllers"
+_CODECS = {family: codec(c, PER_VEHICLE, PER_VEHICLE_KEYS) for family, c in _EXAMPLES.items()}
+
+
+def flight_codec(family: type) -> Codec:
+    """Per-vehicle rows of a batch whose position controllers are of ``family``
+    (:func:`position_family`): every number of a :class:`FlightConst`; its arrays (the force and
+    torque profiles, the waypoints: ``flight_codec(family).arrays(c)``) are the batch's."""
+    return _CODECS[family]
+
+
+def _marker(family: type) -> PositionConst:
+    """The position constants that stand for ``family`` in a call of a compiled loop: only their
+    type is read (it picks the codec), and always the same type, so each family compiles once."""
+    return _EXAMPLES[family].loop.position
+
+
+def _unpack_of(family: type) -> tuple[object, object]:
+    """``family``'s unpack functions taking the family's marker first, as :func:`chosen_by_type` calls them."""
+    unpack, unpack_lanes = _CODECS[family].unpack, _CODECS[family].unpack_lanes
+
+    def one(position, row, forces, torques, waypoints):  # type: ignore[no-untyped-def]
+        return unpack(row, forces, torques, waypoints)
+
+    def in_lanes(position, cols, i0, forces, torques, waypoints):  # type: ignore[no-untyped-def]
+        return unpack_lanes(cols, i0, forces, torques, waypoints)
+
+    # a name of their own (see codec.py: compiled code keeps a function by its name and arguments)
+    one.__qualname__, in_lanes.__qualname__ = unpack.__name__ + "_flight", unpack_lanes.__name__ + "_flight"
+    return one, in_lanes
+
+
+_UNPACK = {family: _unpack_of(family) for family in _CODECS}
+_UNPACK_ONE = {family: u[0] for family, u in _UNPACK.items()}
+_UNPACK_LANES = {family: u[1] for family, u in _UNPACK.items()}
+
+
+@chosen_by_type(_UNPACK_ONE)
+def _unpack_flight(position: PositionConst, row: NDArray[np.float64], forces: NDArray[np.float64],
+                   torques: NDArray[np.float64], waypoints: NDArray[np.float64]) -> FlightConst:
+    """One vehicle's :class:`FlightConst` from its row, by the codec of ``position``'s family."""
+    return _UNPACK_ONE[type(position)](position, row, forces, torques, waypoints)  # type: ignore[operator,no-any-return]
+
+
+@chosen_by_type(_UNPACK_LANES)
+def _unpack_lanes(position: PositionConst, cols: NDArray[np.float64], i0: int, forces: NDArray[np.float64],
+                  torques: NDArray[np.float64], waypoints: NDArray[np.float64]) -> FlightConst:
+    """W vehicles' :class:`FlightConst` from their columns, by the codec of ``position``'s family."""
+    return _UNPACK_LANES[type(position)](position, cols, i0, forces, torques,  # type: ignore[operator,no-any-return]
+                                         waypoints)
+
+
+def fly_many(position: PositionConst, rows: NDArray[np.float64], forces: NDArray[np.float64],
+             torques: NDArray[np.float64], waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
              final: NDArray[np.float64]) -> None:
-    """:func:`fly_loop` for each vehicle (a row of ``FLIGHT_CODEC``, with the batch's arrays), one
-    after another; ``logs[i]`` gets vehicle i's log, ``final[i]`` its last position."""
+    """:func:`fly_loop` for each vehicle (a row of ``flight_codec`` of ``position``'s family, with the
+    batch's arrays), one after another; ``logs[i]`` gets vehicle i's log, ``final[i]`` its last
+    position."""
     for i in range(rows.shape[0]):
-        st = fly_loop(_unpack_flight(rows[i], forces, torques, waypoints), steps, logs[i:i + 1])
+        st = fly_loop(_unpack_flight(position, rows[i], forces, torques, waypoints), steps, logs[i:i + 1])
         p = st.body.pos_ned_m
         final[i, 0] = p[0]
         final[i, 1] = p[1]
         final[i, 2] = p[2]
 
 
-def fly_lanes(cols: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
-              waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
+def fly_lanes(position: PositionConst, cols: NDArray[np.float64], forces: NDArray[np.float64],
+              torques: NDArray[np.float64], waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
               final: NDArray[np.float64]) -> None:
     """:func:`fly_loop` for W vehicles at a time, each group's per-vehicle numbers in lanes
-    (:mod:`.lanes`): ``cols`` is the FLIGHT_CODEC rows transposed (a column per vehicle), padded to
+    (:mod:`.lanes`): ``cols`` is the ``flight_codec`` rows transposed (a column per vehicle), padded to
     a whole number of groups; ``logs`` and ``final`` have a row per real vehicle."""
     n = final.shape[0]
     for i0 in range(0, n, lanes.W):
-        st = fly_loop(_unpack_lanes(cols, i0, forces, torques, waypoints), steps, logs[i0:i0 + lanes.W])
+        st = fly_loop(_unpack_lanes(position, cols, i0, forces, torques, waypoints), steps, logs[i0:i0 + lanes.W])
         for k in range(min(lanes.W, n - i0)):
             p = lanes.lane(st.body.pos_ned_m, k)
             final[i0 + k, 0] = p[0]
@@ -657,7 +712,8 @@ if numba_available():
     lanes.register()
 fly_compiled = kernel(fly_many, nogil=True)
 """:func:`fly_many` compiled (cached on disk) and free of the GIL while it runs, or as it is without
-numba. One vehicle flies as a batch of one."""
+numba. One vehicle flies as a batch of one. Compiled once per family of position controllers (the
+type of its first argument), on the family's first flight."""
 fly_lanes_compiled = kernel(fly_lanes, nogil=True)
 """:func:`fly_lanes` compiled (on its first call: a second compile of the laws, with lanes)."""
 
@@ -670,10 +726,11 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
-def fly_batch(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
+def fly_batch(family: type, rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
               waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
               final: NDArray[np.float64], threads: int | None = None) -> None:
-    """Fly every vehicle (a row of FLIGHT_CODEC each) on every core: ``threads`` (default
+    """Fly every vehicle (a row of ``flight_codec(family)`` each, ``family`` the type of their
+    position constants: :func:`position_family`) on every core: ``threads`` (default
     :func:`cores`) Python threads, each a contiguous share of the vehicles, the compiled loop
     releasing the GIL. A batch of at least W vehicles that differ only in :data:`PER_VEHICLE` flies
     in lanes (:data:`fly_lanes_compiled`, W vehicles per instruction); any other (one vehicle, a
@@ -682,13 +739,16 @@ def fly_batch(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: N
     neither the split nor the path changes a number. Threads rather than numba's ``parallel=True``:
     the same speed on this machine, ~4 s less to compile, and no threading layer (numba's OpenMP
     cannot survive a fork(); docs/benchmarks.md)."""
-    if rows.shape[0] >= lanes.W and lanes_apply(rows):
-        _fly_in_lanes(rows, forces, torques, waypoints, steps, logs, final, threads)
+    if rows.shape[1] != flight_codec(family).size:
+        raise ValueError(f"rows of {rows.shape[1]} numbers: {family.__name__}'s flights have "
+                         f"{flight_codec(family).size} (rows packed for another family?)")
+    if rows.shape[0] >= lanes.W and lanes_apply(family, rows):
+        _fly_in_lanes(family, rows, forces, torques, waypoints, steps, logs, final, threads)
         return
-    fly_one_by_one(rows, forces, torques, waypoints, steps, logs, final, threads)
+    fly_one_by_one(family, rows, forces, torques, waypoints, steps, logs, final, threads)
 
 
-def fly_one_by_one(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
+def fly_one_by_one(family: type, rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
                    waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
                    final: NDArray[np.float64], threads: int | None = None) -> None:
     """:data:`fly_compiled` over the vehicles, one after another in each of ``threads`` contiguous
@@ -697,11 +757,12 @@ def fly_one_by_one(rows: NDArray[np.float64], forces: NDArray[np.float64], torqu
     n = rows.shape[0]
     shares = max(1, min(n, threads or cores()))
     edges = [n * k // shares for k in range(shares + 1)]
-    _in_threads(fly_compiled, [(rows[a:b], forces, torques, waypoints, steps, logs[a:b], final[a:b])
+    position = _marker(family)
+    _in_threads(fly_compiled, [(position, rows[a:b], forces, torques, waypoints, steps, logs[a:b], final[a:b])
                                for a, b in zip(edges[:-1], edges[1:])])
 
 
-def lanes_apply(rows: NDArray[np.float64]) -> bool:
+def lanes_apply(family: type, rows: NDArray[np.float64]) -> bool:
     """Whether vehicles ``rows`` can fly in lanes: compiled, and the same in every uniform column."""
     if not numba_available():
         return False
@@ -709,12 +770,12 @@ def lanes_apply(rows: NDArray[np.float64]) -> bool:
 
     if numba.config.DISABLE_JIT:
         return False
-    u = rows[:, list(FLIGHT_CODEC.uniform)]
+    u = rows[:, list(flight_codec(family).uniform)]
     same = (u == u[0]) | (np.isnan(u) & np.isnan(u[0]))
     return bool(same.all())
 
 
-def _fly_in_lanes(rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
+def _fly_in_lanes(family: type, rows: NDArray[np.float64], forces: NDArray[np.float64], torques: NDArray[np.float64],
                   waypoints: NDArray[np.float64], steps: int, logs: NDArray[np.float64],
                   final: NDArray[np.float64], threads: int | None) -> None:
     """:data:`fly_lanes_compiled`, whole groups of W vehicles per thread (the last one padded with
@@ -729,7 +790,7 @@ def _fly_in_lanes(rows: NDArray[np.float64], forces: NDArray[np.float64], torque
         cols = np.empty((rows.shape[1], padded))
         cols[:, :b - a] = rows[a:b].T
         cols[:, b - a:] = rows[b - 1][:, None]
-        jobs.append((cols, forces, torques, waypoints, steps, logs[a:b], final[a:b]))
+        jobs.append((_marker(family), cols, forces, torques, waypoints, steps, logs[a:b], final[a:b]))
     _in_threads(fly_lanes_compiled, jobs)
 
 

@@ -4,17 +4,22 @@ import pytest
 
 from companion.control import attitude, position
 from companion.control.names import CONTROLLERS, Controller, att_ctrl_kinds, controller_label, controllers_for
+from companion.control.params import PositionGains
 
 
 def test_each_loop_lists_exactly_the_controllers_that_serve_it_and_its_kind_numbers_name_them():
+    """Attitude controllers are numbered by their place in the loop's tuple; each position
+    controller builds the constants of one family, whose type has its step function."""
     assert attitude.ATTITUDE_CONTROLLERS == tuple(c.name for c in CONTROLLERS if "attitude" in c.loops)
     assert position.POSITION_CONTROLLERS == tuple(c.name for c in CONTROLLERS if "position" in c.loops)
     names = attitude.ATTITUDE_CONTROLLERS
     assert [names[k] for k in (attitude.PD, attitude.PD_DO, attitude.ISM_DO, attitude.INDI)] == [
         "pd", "pd_do", "ism_do", "indi"]
-    names = position.POSITION_CONTROLLERS
-    assert [names[k] for k in (position.PID, position.AIBC, position.PD_DO, position.ISM_DO, position.INDI)] == [
-        "pid", "aibc", "pd_do", "ism_do", "indi"]
+    families = {name: type(position.position_const(name, PositionGains(), 1.0, 9.81, 0.01))
+                for name in position.POSITION_CONTROLLERS}
+    assert families == {"pid": position.PidConst, "aibc": position.AibcConst, "pd_do": position.DoConst,
+                        "ism_do": position.DoConst, "indi": position.DoConst}
+    assert set(position.STEPS) == set(families.values())
 
 
 def test_every_controller_has_a_label_of_its_own_and_a_distinct_figure_style_in_its_loop():

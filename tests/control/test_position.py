@@ -187,3 +187,21 @@ def test_ism_do_closed_loop_is_the_pid_inside_the_layer():
     assert s_max < DEFAULT_GAINS.boundary_layer_m_s[0]
     # the integral is updated after s_p is formed (the reference: before), a one-step shift
     assert np.max(np.abs(got - expected)) < 0.01 * np.max(np.abs(expected))
+
+
+def test_each_family_builds_a_record_of_its_own_and_its_type_picks_the_step():
+    """PD+DO, ISM+DO and INDI share DoConst (observer order 1, 1, 2; the sliding term for ISM+DO
+    only); PID and AIBC have records of their own, and no record carries another family's fields."""
+    from companion.control import position as P
+
+    consts = {k: P.position_const(k, PositionGains(), 0.63, G, 0.01) for k in POSITION_CONTROLLERS}
+    assert {k: type(c) for k, c in consts.items()} == {
+        "pid": P.PidConst, "aibc": P.AibcConst, "pd_do": P.DoConst, "ism_do": P.DoConst, "indi": P.DoConst}
+    assert [(consts[k].observer.order, consts[k].sliding) for k in ("pd_do", "ism_do", "indi")] == [
+        (1, False), (1, True), (2, False)]
+    assert "observer" not in P.PidConst._fields and "k_i" not in P.DoConst._fields
+    st0 = P.position_init()
+    args = ((0.1, -0.2, 0.3), (0.0, 0.1, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, -G), True, (0.0, 0.0, -0.63 * G))
+    for c in consts.values():
+        assert P.position_step(c, st0, *args) == P.STEPS[type(c)](c, st0, *args)
+

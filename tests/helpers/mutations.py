@@ -176,8 +176,8 @@ MUTATIONS: tuple[Mutation, ...] = (
     ),
     Mutation(
         "AIBC integral coefficient c1 lam instead of c2 lam", "companion/control/position.py",
-        (("aibc_i = tuple(c2[i] * lam[i] for i in range(3))",
-          "aibc_i = tuple(c1[i] * lam[i] for i in range(3))"),),
+        (("k_i=tuple(c2[i] * lam[i] for i in range(3))",
+          "k_i=tuple(c1[i] * lam[i] for i in range(3))"),),
         "the gain-matched AIBC's integral gain is c2 lam",
         (f"{POS}::test_aibc_closed_loop_has_the_pid_poles",),
     ),

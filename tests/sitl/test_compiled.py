@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from companion.control.position import DoConst
 from sitl.lab.simulation import LOG_COLUMNS, simulate
 from sitl.lab.sweep import Member, stack_gains
 from sitl.plant.scenario import Scenario, load_scenario
@@ -123,13 +124,14 @@ def test_a_parallel_batch_flies_each_vehicle_as_it_flies_alone() -> None:
 
 
 def _rows(members: list[tuple[Scenario, tuple[int, ...]]]) -> tuple[np.ndarray, tuple[np.ndarray, ...], int, int]:
-    """(FLIGHT_CODEC rows, the batch's arrays, plant steps, log rows) of ISM+DO vehicles."""
+    """(flight_codec rows, the batch's arrays, plant steps, log rows) of ISM+DO vehicles."""
     from sitl.plant import kernel as K
 
     consts = [K.flight_const(sc, "ism_do", "ism_do", s) for sc, seeds in members for s in seeds]
     sc = members[0][0]
     steps = int(round(sc.duration_s * sc.plant_rate_hz))
-    return (np.array([K.FLIGHT_CODEC.pack(c) for c in consts]), K.FLIGHT_CODEC.arrays(consts[0]), steps,
+    codec = K.flight_codec(K.position_family(consts[0]))
+    return (np.array([codec.pack(c) for c in consts]), codec.arrays(consts[0]), steps,
             -(-steps // consts[0].log_div))
 
 
@@ -145,12 +147,12 @@ def test_a_batch_in_lanes_flies_each_vehicle_as_it_flies_alone() -> None:
                             attitude=dataclasses.replace(sc.attitude, omega_c_rad_s=15.0))
     rows, arrays, steps, n_log = _rows([(sc, (4, 9, 11, 12)), (stiff, (4, 20, 21))])
     n = rows.shape[0]
-    assert K.lanes_apply(rows) and n > K.lanes.W and n % K.lanes.W != 0  # the lanes path, a padded group
+    assert K.lanes_apply(DoConst, rows) and n > K.lanes.W and n % K.lanes.W != 0  # the lanes path, a padded group
     lanes_log, lanes_final = np.empty((n, n_log, len(LOG_COLUMNS))), np.empty((n, 3))
-    K.fly_batch(rows, *arrays, steps, lanes_log, lanes_final, threads=2)
+    K.fly_batch(DoConst, rows, *arrays, steps, lanes_log, lanes_final, threads=2)
     one_log, one_final = np.empty_like(lanes_log), np.empty_like(lanes_final)
     for i in range(n):
-        K.fly_one_by_one(rows[i:i + 1], *arrays, steps, one_log[i:i + 1], one_final[i:i + 1], threads=1)
+        K.fly_one_by_one(DoConst, rows[i:i + 1], *arrays, steps, one_log[i:i + 1], one_final[i:i + 1], threads=1)
     np.testing.assert_array_equal(lanes_log, one_log)
     np.testing.assert_array_equal(lanes_final, one_final)
     # every vehicle flew its own flight: the seeds and the gains reached their lanes
@@ -166,11 +168,21 @@ def test_a_batch_that_differs_in_a_shared_number_flies_one_by_one_with_the_same_
     sc = load_scenario("E3_wind").with_changes(duration_s=0.5)
     heavy = sc.with_changes(vehicle=dataclasses.replace(sc.vehicle, mass_kg=1.2 * sc.vehicle.mass_kg))
     rows, arrays, steps, n_log = _rows([(sc, (1, 2, 3)), (heavy, (4, 5))])
-    assert not K.lanes_apply(rows)
+    assert not K.lanes_apply(DoConst, rows)
     n = rows.shape[0]
     batch_log, batch_final = np.empty((n, n_log, len(LOG_COLUMNS))), np.empty((n, 3))
-    K.fly_batch(rows, *arrays, steps, batch_log, batch_final)
+    K.fly_batch(DoConst, rows, *arrays, steps, batch_log, batch_final)
     for i in range(n):
         one_log, one_final = np.empty((1, n_log, len(LOG_COLUMNS))), np.empty((1, 3))
-        K.fly_one_by_one(rows[i:i + 1], *arrays, steps, one_log, one_final)
+        K.fly_one_by_one(DoConst, rows[i:i + 1], *arrays, steps, one_log, one_final)
         np.testing.assert_array_equal(batch_log[i], one_log[0])
+
+
+def test_codecs_of_different_structures_name_their_compiled_functions_apart():
+    """Compiled code keeps a function by its name and argument types: two families' unpacks (same
+    arguments) compiled in different processes and loaded from the disk cache into one must not
+    share a name, or one family's flight would be unpacked by the other's code."""
+    from sitl.plant import kernel as K
+
+    names = [K.flight_codec(f).unpack.__name__ for f in K._CODECS]
+    assert len(set(names)) == len(names) == 3
