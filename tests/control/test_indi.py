@@ -9,8 +9,8 @@ from companion.control import quaternion as quat
 from companion.control import vector as vec
 from companion.control.attitude import AttitudeController
 from companion.control.observers import lowpass_step
-from companion.control.params import AttitudeGains, PositionGains, VehicleParams
-from companion.control.position import PositionController
+from companion.control.params import AttitudeGains, VehicleParams
+from helpers.point_mass import point_mass
 
 J = VehicleParams().inertia_kg_m2
 DT = 0.001
@@ -64,26 +64,10 @@ def test_indi_rejects_a_torque_step_faster_than_the_paper_observer():
     assert indi[-1] < 1e-5 and pd_do[-1] < 1e-5
 
 
-def point_mass(kind, seconds=15.0, dt=0.01, m=0.63, force_n=2.0):
-    ctrl = PositionController(kind, PositionGains(), m)
-    x = v = 0.0
-    applied = (0.0, 0.0, -m * G)
-    xs = []
-    for k in range(int(seconds / dt)):
-        h = force_n if k * dt >= 1.0 else 0.0
-        acc = (applied[0] + h) / m
-        f = ctrl.update((x, 0.0, 0.0), (v, 0.0, 0.0), (0, 0, 0), (acc, 0.0, -G), applied, dt)
-        applied = f
-        v += (f[0] + h) / m * dt
-        x += v * dt
-        xs.append(x)
-    return np.array(xs), ctrl
-
-
 def test_indi_outer_loop_holds_position_against_a_force():
     """f = f_f + m0 (a_ref - a_f): the filtered force and acceleration cancel the 2 N, the error
     returns to zero (no integral needed) and the estimate is the force."""
-    xs, ctrl = point_mass("indi")
+    xs, ctrl = point_mass("indi", 2.0, seconds=15.0)
     assert abs(xs[-1]) < 1e-3
     assert ctrl.estimate_n[0] == pytest.approx(2.0, rel=1e-3)
-    assert 0.0 < xs.max() < point_mass("pd_do")[0].max() * 1.5
+    assert 0.0 < xs.max() < point_mass("pd_do", 2.0, seconds=15.0)[0].max() * 1.5

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from companion.control.params import PositionGains
 from companion.control.position import POSITION_CONTROLLERS, PositionController, aibc_coefficients
+from helpers.point_mass import point_mass
 
 G = 9.81
 
@@ -44,24 +45,6 @@ def test_hover_force_is_the_weight_upwards(kind):
 
 
 DEFAULT_GAINS = PositionGains()
-
-
-def point_mass(kind, force_n, seconds=20.0, dt=0.01, gains=DEFAULT_GAINS, m=0.63):
-    """m r'' = m g e3 + f + h along x only (ideal actuator, accelerometer without noise)."""
-    ctrl = PositionController(kind, gains, m)
-    x = v = 0.0
-    applied = (0.0, 0.0, -m * G)
-    xs = []
-    for k in range(int(seconds / dt)):
-        t = k * dt
-        h = force_n if t >= 1.0 else 0.0
-        acc = (applied[0] + h) / m
-        f = ctrl.update((x, 0.0, 0.0), (v, 0.0, 0.0), (0, 0, 0), (acc, 0.0, -G), applied, dt)
-        applied = f
-        v += (f[0] + h) / m * dt
-        x += v * dt
-        xs.append(x)
-    return np.array(xs), ctrl
 
 
 def test_force_observer_converges_to_the_disturbance_and_removes_the_error():
