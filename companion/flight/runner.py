@@ -30,7 +30,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control.params import PositionGains
 from companion.link import LinkError, VehicleLink, open_link
-from companion.link.resets import UNSTABLE_RESETS, UNSTABLE_WINDOW_S, ResetBound
+from companion.link.resets import ResetBound, ResetsTold, unstable_reason
 from companion.mavlink.identity import VehicleTarget, resolve_target
 from companion.mavlink.signing import fingerprint
 from companion.mission import Mission
@@ -172,10 +172,7 @@ class Flight:
         self.preflight: dict = {}
         self.failure: str | None = None
         self._breach: str | None = None
-        self._resets_seen = 0
-        self._announcements_seen = 0
-        self._unstable: str | None = None
-        """why the position estimate is not to be flown on (resets too often), or None"""
+        self.resets_told = ResetsTold()
 
     @property
     def stale(self) -> bool:
@@ -363,22 +360,21 @@ class Flight:
     def _note_resets(self) -> None:
         """Log each estimator reset the link found (link/resets.py), count it in its segment, and
         judge whether the estimate still is one to fly on."""
-        det = self.link.state.resets
-        for reset in det.resets[self._resets_seen:]:
+        det, told = self.link.state.resets, self.resets_told
+        for reset in det.resets[told.resets:]:
             n, e, d = reset.shift_ned_m
             self.log(f"estimator reset{' (announced)' if reset.announced else ''}: the position "
                      f"estimate jumped {reset.size_m:.2f} m (N {n:+.2f}, E {e:+.2f}, D {d:+.2f}) at "
                      f"t={reset.t_s:.2f} s: re-anchored, the vehicle holds where it was")
             if self.recorder.segments:
                 self.recorder.segments[-1].position_resets += 1
-        # an announced reset found after it was taken as unannounced is relabelled, not added
-        self._resets_seen = len(det.resets)
-        if det.announcements > self._announcements_seen:
-            self._announcements_seen = det.announcements
+        if det.announcements > told.announcements:
             self.log(f"the autopilot announced an estimator reset (ODOMETRY reset_counter {det.counter})")
-        if self._unstable is None and det.unstable(self.link.state.t):
-            self._unstable = (f"position estimate reset {UNSTABLE_RESETS} times within {UNSTABLE_WINDOW_S:g} s: "
-                              "not flown on")
+        unstable = told.unstable
+        if unstable is None and det.unstable(self.link.state.t):
+            unstable = unstable_reason()
+        # an announced reset found after it was taken as unannounced is relabelled, not added
+        self.resets_told = ResetsTold(len(det.resets), max(det.announcements, told.announcements), unstable)
 
     def _send_debug(self, tick: Tick, t: float) -> None:
         """The force estimate, the commanded force and the tracking error to the ground station
@@ -430,8 +426,8 @@ class Flight:
                 raise MissionAbort(why)
             if self._breach is not None:
                 raise MissionAbort(self._breach)
-            if self._unstable is not None and self.expect_offboard:
-                raise MissionAbort(self._unstable)
+            if self.resets_told.unstable is not None and self.expect_offboard:
+                raise MissionAbort(self.resets_told.unstable)
             if cond():
                 return
             if st.t - start > timeout_v or now - wall_start > wall_limit:

@@ -28,10 +28,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from companion.control.vector import Vec3
 
-__all__ = ["ResetBound", "PositionReset", "ResetDetector", "unexplained_step", "ANNOUNCE_WINDOW_S"]
+__all__ = ["ResetBound", "PositionReset", "ResetDetector", "ResetsTold", "unstable_reason", "unexplained_step",
+           "ANNOUNCE_WINDOW_S"]
 
 ANNOUNCE_WINDOW_S = 0.25
 """vehicle seconds between a reset counter's change and the position jump it announces (ODOMETRY
@@ -139,3 +141,19 @@ class ResetDetector:
     def unstable(self, t_s: float) -> bool:
         """So many resets so recently that the estimate is not one to fly on."""
         return sum(1 for r in self.resets if t_s - r.t_s <= UNSTABLE_WINDOW_S) >= UNSTABLE_RESETS
+
+
+class ResetsTold(NamedTuple):
+    """How far a reader of a :class:`ResetDetector` has told what it found (the flight's log)."""
+
+    resets: int = 0
+    """resets logged"""
+    announcements: int = 0
+    """reset-counter changes logged"""
+    unstable: str | None = None
+    """why the position estimate is not to be flown on (resets too often), or None"""
+
+
+def unstable_reason() -> str:
+    """What a flight says when :meth:`ResetDetector.unstable` first holds."""
+    return f"position estimate reset {UNSTABLE_RESETS} times within {UNSTABLE_WINDOW_S:g} s: not flown on"
