@@ -310,9 +310,6 @@ class AttitudeController(Stepper[AttitudeConst]):
     def s(self) -> Vec3:
         return self.state.s
 
-    def reset(self) -> None:
-        self.state = attitude_init()
-
     def reset_integral(self) -> None:
         """Restart the sliding mode from the current error (z = -s0) at the next update: for a
         change of reference type, when the old integral no longer means anything."""

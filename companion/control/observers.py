@@ -202,9 +202,6 @@ class MatchingFilter(Stepper[MatchingConst]):
     def _build(self, dt_s: float) -> MatchingConst:
         return matching_const(self.delay_s, self.cutoff_hz, self.order, dt_s)
 
-    def reset(self) -> None:
-        self.state = matching_init()
-
     def update(self, u: Vec3, dt_s: float) -> Vec3:
         self.state, y = matching_step(self.const(dt_s), self.state, u)
         return y
@@ -281,9 +278,6 @@ class ForceObserver(Stepper[ForceObserverConst]):
     @property
     def estimate_n(self) -> Vec3:
         return self.state.estimate_n
-
-    def reset(self) -> None:
-        self.state = force_observer_init()
 
     def measure(self, specific_force_ned_m_s2: Vec3, force_ned_n: Vec3) -> Vec3:
         """``m0 (r_dd - g e3) - f``: the raw disturbance measurement of (30) [N]."""
@@ -369,9 +363,6 @@ class MomentumObserver(Stepper[MomentumConst]):
 
     def _build(self, dt_s: float) -> MomentumConst:
         return MomentumConst(self.mass_kg, self.bandwidth_rad_s, self.matching.const(dt_s))
-
-    def reset(self) -> None:
-        self.state = momentum_init()
 
     def update(self, vel_m_s: Vec3, force_n: Vec3, known_accel_m_s2: Vec3, dt_s: float) -> Vec3:
         """Advance over the step that just ended: ``vel_m_s`` now, ``force_n`` and

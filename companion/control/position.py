@@ -440,9 +440,6 @@ class PositionController(Stepper[PositionConst]):
     def estimate_n(self) -> Vec3:
         return self.state.estimate_n
 
-    def reset(self) -> None:
-        self.state = position_init()
-
     def update(
         self,
         pos_err_m: Vec3,

@@ -7,7 +7,8 @@ the interpreted callers use a thin wrapper that holds the state and derives from
 
 from __future__ import annotations
 
-from typing import Generic, TypeVar
+import dataclasses
+from typing import Any, Generic, TypeVar
 
 __all__ = ["Stepper"]
 
@@ -15,10 +16,13 @@ C = TypeVar("C")
 
 
 class Stepper(Generic[C]):
-    """A law's constants from :meth:`_build`, rebuilt only when the step length changes."""
+    """A law's constants from :meth:`_build`, rebuilt only when the step length changes; its state
+    held, and put back at rest by :meth:`reset`."""
 
     _const: C | None = None
     _dt: float = -1.0
+    state: Any
+    """the law's state record: a dataclass field of the wrapper, its default the state at rest"""
 
     def _build(self, dt_s: float) -> C:
         raise NotImplementedError
@@ -27,3 +31,8 @@ class Stepper(Generic[C]):
         if self._const is None or self._dt != dt_s:
             self._const, self._dt = self._build(dt_s), dt_s
         return self._const
+
+    def reset(self) -> None:
+        """Back to the state at rest: the ``state`` field's default."""
+        (state,) = (f for f in dataclasses.fields(self) if f.name == "state")  # type: ignore[arg-type]
+        self.state = state.default_factory()  # type: ignore[misc]
