@@ -48,11 +48,15 @@ class ParamChanges:
 
     async def set(self, name: str, value: float, why: str, keep: bool = False) -> bool:
         """Set ``name`` to ``value``; False if the autopilot has no such parameter. LinkError if it
-        refuses the value. ``keep``: the value stays after the flight (a mission step's ``keep``)."""
+        refuses the value, or says nothing about a parameter this flight has already written (it
+        exists: the answers were lost). ``keep``: the value stays after the flight (a mission step's
+        ``keep``)."""
         have = await self.link.get_param(name)
-        if have is None:
-            return False
         known = self.record.get(name) is not None
+        if have is None:
+            if known:
+                raise LinkError(f"parameter {name}: no answer from the vehicle (it was written earlier in this flight)")
+            return False
         if same_value(have, value):
             if known:  # written before in this flight: a keep moves what it is put back to
                 self.record = self.record.written(name, have, value, keep)

@@ -8,9 +8,9 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from companion.mavlink.modes import COPTER_MODES, px4_custom_mode
 from companion.link.pymavlink_link import PymavlinkLink
-from helpers.links import fed_link
+from helpers.links import VEHICLE_PEER, fed_link, locked_link
 
-PEER = ("127.0.0.1", 14580)
+PEER = VEHICLE_PEER
 
 
 def link_with(frames) -> PymavlinkLink:
@@ -79,22 +79,6 @@ def test_a_command_ack_counts_only_when_addressed_to_us_and_answering_a_command_
     assert result == mavlink.MAV_RESULT_FAILED and not_ours == 1 and unasked == 1
 
 
-def _param_link(plant: bool):
-    """A link locked onto ArduCopter (sysid 1), with (or without) the simulated plant's component
-    heard, whose outgoing frames are kept instead of sent."""
-    link = PymavlinkLink("udpin://127.0.0.1:0", command_timeout_s=0.2, command_retries=2)
-    ap, sim = mav(1, 1), mav(1, 25)
-    link._received(heartbeat(ap, autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
-                                 custom_mode=COPTER_MODES["GUIDED"]), PEER)
-    if plant:
-        link._received(sim.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
-                                            mavlink.MAV_STATE_UNINIT).pack(sim),
-                       PEER)
-    sent: list = []
-    link._send = sent.append
-    return link, ap, sim, sent
-
-
 def _param_error(ap, name: str) -> bytes:
     return ap.param_error_encode(255, 191, name.encode(), -1, mavlink.MAV_PARAM_ERROR_DOES_NOT_EXIST).pack(ap)
 
@@ -104,7 +88,7 @@ def test_the_autopilots_late_no_such_parameter_does_not_refuse_the_plants_write(
     has answered it: arriving while the write to the plant waits for its echo, it must not end
     that wait (a hover45 flight aborted 'parameter SIM_FORCE_X was not acknowledged' this way)."""
     async def main():
-        link, ap, sim, sent = _param_link(plant=True)
+        link, ap, sim, sent = locked_link(plant=True)
         stop = asyncio.Event()
         reader = asyncio.create_task(link.run(stop))
         await asyncio.sleep(0.02)
@@ -136,7 +120,7 @@ def test_no_such_parameter_from_the_autopilot_ends_a_read_at_once_when_there_is_
     """Without a plant's component the autopilot's PARAM_ERROR is the whole answer: one request,
     not the retries of a read nobody will answer."""
     async def main():
-        link, ap, _, sent = _param_link(plant=False)
+        link, ap, _, sent = locked_link(plant=False)
         stop = asyncio.Event()
         reader = asyncio.create_task(link.run(stop))
         await asyncio.sleep(0.02)

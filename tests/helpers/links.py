@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import asyncio
 
+from pymavlink.dialects.v20 import common as mavlink
+
 from companion.link.pymavlink_link import PymavlinkLink
+from companion.mavlink.modes import COPTER_MODES
+
+VEHICLE_PEER = ("127.0.0.1", 14580)
+"""where the frames fed to a link come from"""
 
 
 class _Sink:
@@ -35,3 +41,22 @@ def fed_link(frames: list[bytes], peer: tuple[str, int], **options: object) -> P
         return link
 
     return asyncio.run(main())
+
+
+def locked_link(plant: bool) -> tuple[PymavlinkLink, mavlink.MAVLink, mavlink.MAVLink, list]:
+    """A link fed ArduCopter's heartbeat (system 1), and the simulated plant's component's if
+    ``plant``, whose outgoing messages are kept in the list returned instead of sent; with the
+    autopilot's and the plant's encoders, to feed it their answers. Its reader, once started, locks
+    onto the autopilot."""
+    link = PymavlinkLink("udpin://127.0.0.1:0", command_timeout_s=0.2, command_retries=2)
+    ap = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    sim = mavlink.MAVLink(None, srcSystem=1, srcComponent=25)
+    link._received(ap.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                       mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | 128, COPTER_MODES["GUIDED"],
+                                       mavlink.MAV_STATE_ACTIVE).pack(ap), VEHICLE_PEER)
+    if plant:
+        link._received(sim.heartbeat_encode(mavlink.MAV_TYPE_GENERIC, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                            mavlink.MAV_STATE_UNINIT).pack(sim), VEHICLE_PEER)
+    sent: list = []
+    link._send = sent.append  # type: ignore[method-assign]
+    return link, ap, sim, sent
