@@ -137,12 +137,13 @@ class Seen:
     def course_deg(self) -> float:
         return math.degrees(math.atan2(self.v_ned_m_s[1], self.v_ned_m_s[0]))
 
-    def yaw_rate_deg_s(self, speed: float, over_s: float = 1.0) -> float:
-        """The mean yaw rate over the last ``over_s`` vehicle seconds (unwrapped), timed by the
-        attitude's own stamps (a loaded host runs the vehicle slower than ``speed``: timed by the
-        wall clock, 30 deg/s read 15). ``speed`` is kept for the callers; the stamps need none."""
-        start = self.yaws[-1][0] - over_s
-        recent = [(t, y) for t, y in self.yaws if t >= start]
+    def yaw_rate_deg_s(self, speed: float, over_s: float = 1.0, until_s: float | None = None) -> float:
+        """The mean yaw rate over the ``over_s`` vehicle seconds before ``until_s`` (default: the
+        newest attitude), unwrapped, timed by the attitude's own stamps (a loaded host runs the
+        vehicle slower than ``speed``: timed by the wall clock, 30 deg/s read 15). ``speed`` is kept
+        for the callers; the stamps need none."""
+        end = self.yaws[-1][0] if until_s is None else until_s
+        recent = [(t, y) for t, y in self.yaws if end - over_s <= t <= end]
         turned = sum(_wrap(b[1] - a[1]) for a, b in zip(recent, recent[1:]))
         return turned / (recent[-1][0] - recent[0][0])
 
@@ -328,9 +329,13 @@ async def offboard_velocity_body(offboard, action, seen, pause, notes) -> None: 
              ("wait at the end", VelocityBodyYawspeed(0.0, 0.0, 0.0, 0.0), 8.0)]
     for name, setpoint, seconds in steps:
         await offboard.set_velocity_body(setpoint)
+        begun = seen.yaws[-1][0]
         await pause(seconds)
-        notes[name] = (seen.v_ned_m_s, seen.speed_h_m_s, seen.course_deg, seen.yaw_deg,
-                       seen.yaw_rate_deg_s(notes["speed"]))
+        # the rate over the step's second before its last half second, fixed in vehicle time: read at
+        # whatever moment this task wakes, PX4 SIH's yaw-rate dip 5 s into the climb (~0.5 s at
+        # 11-14 deg/s, in every flight) fell partly inside and read 29 and 44 deg/s for 60
+        rate = seen.yaw_rate_deg_s(notes["speed"], until_s=begun + seconds - 0.5)
+        notes[name] = (seen.v_ned_m_s, seen.speed_h_m_s, seen.course_deg, seen.yaw_deg, rate)
     await _stop_and_settle(offboard, seen, pause, notes)
 
 
