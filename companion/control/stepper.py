@@ -7,7 +7,6 @@ the interpreted callers use a thin wrapper that holds the state and derives from
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Generic, TypeVar
 
 __all__ = ["Stepper"]
@@ -33,6 +32,6 @@ class Stepper(Generic[C]):
         return self._const
 
     def reset(self) -> None:
-        """Back to the state at rest: the ``state`` field's default."""
-        (state,) = (f for f in dataclasses.fields(self) if f.name == "state")  # type: ignore[arg-type]
-        self.state = state.default_factory()  # type: ignore[misc]
+        """Back to the state at rest: the ``state`` field's default (a dict lookup: the autopilot
+        resets its loops every plant step while on the ground)."""
+        self.state = type(self).__dataclass_fields__["state"].default_factory()  # type: ignore[attr-defined]
