@@ -37,10 +37,11 @@ test: setup lint
 	$(PY) -m pytest -q -m "firmware and ardupilot" --durations=10; ardupilot=$$?; \
 	test $$px4 -eq 0 -a $$ardupilot -eq 0
 
-# the long fuzz run (CI runs the same tests with 150 examples each); FUZZ_EXAMPLES to change it
+# the long fuzz run, new examples every run (CI runs the same tests with 150 fixed examples each,
+# seeded from each test's name); FUZZ_EXAMPLES to change it; a failure prints its reproduce blob
 FUZZ_EXAMPLES ?= 20000
 fuzz: setup
-	FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(PY) -m pytest -q tests/fuzz --durations=0
+	FUZZ_EXPLORE=1 FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(PY) -m pytest -q tests/fuzz --durations=0
 
 # the named mutation list of the control core (tests/helpers/mutations.py); CI runs it as
 # tests/test_mutations.py, this target also writes the score to docs/mutations.md

@@ -158,3 +158,24 @@ def test_reference_filter_stepped_at_10_hz_does_not_creep_out_of_a_ceiling():
     _, at_100hz = fly(0.01)
     assert top >= -1.0 - 1e-9, top
     assert np.allclose(at_10hz, at_100hz, atol=0.005), (at_10hz, at_100hz)
+
+
+def test_reference_filter_with_a_jerk_limit_high_for_its_speed_does_not_chatter_up_through_a_ceiling():
+    """A 0.1 m/s limit with a 500 m/s^3 jerk limit: in 20 ms sub-steps one step's jerk could swing
+    the velocity by 0.2 m/s, twice the limit, and on a 10 m horizontal leg from 0.69 m down to
+    0.5 m the velocity chattered and the reference climbed to 1.06 m (hypothesis found it leaving a
+    1.0 m ceiling, tests/fuzz). The sub-step now keeps ``j h^2 <= v_max / 2``: stepped at 10 Hz the
+    reference never rises above where it started and arrives where a 1 kHz filter does."""
+    p = TrajectoryParams(max_speed_m_s=0.1, max_accel_m_s2=20.0, max_jerk_m_s3=500.0, bandwidth_rad_s=2.0)
+
+    def fly(dt: float) -> tuple[float, tuple]:
+        f = ReferenceFilter(p, (0.0, 0.0, -0.6875))
+        top = -0.6875
+        for _ in range(round(120.0 / dt)):  # arrives after ~110 s
+            top = min(top, f.update((0.0, 10.0, -0.5), 0.0, dt).pos_ned_m[2])
+        return top, f.pos_ned_m
+
+    top, at_10hz = fly(0.1)
+    _, at_1khz = fly(0.001)
+    assert top >= -0.6875 - 1e-6, top
+    assert np.allclose(at_10hz, at_1khz, atol=0.005), (at_10hz, at_1khz)
