@@ -18,18 +18,21 @@ holds the two within 1e-12 over an E3 flight).
 
 Compiled kernels are cached on disk (``cache=True``) in a folder named after a digest of the
 sources they are compiled from (:func:`cache_dir`): numba's own cache only watches the file of
-the kernel itself, so an edited law in another file would otherwise run stale code.
+the kernel itself, so an edited law in another file would otherwise run stale code. Processes
+that need the same kernel at once compile it once (:func:`compile_once`): the test suite's four
+workers each compiled every kernel they flew on an empty cache.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 from pathlib import Path
 from typing import Any, Callable, Mapping, TypeVar
 
 __all__ = ["jitable", "chosen_by_type", "float_form", "lanewise", "kernel", "register_with_numba", "numba_available",
-           "cache_dir", "SOURCES", "depends_on", "KERNEL_OPT", "float_forms", "lanewise_functions"]
+           "cache_dir", "compile_once", "SOURCES", "depends_on", "KERNEL_OPT", "float_forms", "lanewise_functions"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -128,6 +131,39 @@ def cache_dir() -> Path:
     base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "ismdo-numba")
     return Path(base) / _digest()
+
+
+def compile_once(dispatcher: Any, *args: Any) -> None:
+    """Have ``dispatcher`` (a :func:`kernel`) compiled for ``args``' types before they are flown:
+    loaded from the disk cache, or compiled and saved there by the first of the processes that
+    ask for it at once while the others wait for it under a file lock, then load it. (A
+    :func:`kernel` compiles on its first call all the same; this keeps two processes from
+    compiling the same kernel side by side. Nothing happens interpreted, or once compiled.)"""
+    typeof = getattr(dispatcher, "typeof_pyval", None)
+    if typeof is None:  # numba absent or disabled: a plain function
+        return
+    signature = tuple(typeof(a) for a in args)
+    if signature in dispatcher.overloads:
+        return
+    folder = cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}.lock", "w") as lock:
+        with _locked(lock):
+            dispatcher.compile(signature)
+
+
+@contextlib.contextmanager
+def _locked(f: Any) -> Any:
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock, each process compiles as numba would
+        yield
+        return
+    fcntl.flock(f, fcntl.LOCK_EX)
+    try:
+        yield
+    finally:
+        fcntl.flock(f, fcntl.LOCK_UN)
 
 
 def register_with_numba() -> None:

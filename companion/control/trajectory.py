@@ -8,6 +8,7 @@ a smooth reference with ``|v| <= max_speed_m_s``; yaw follows a rate-limited fir
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -108,7 +109,7 @@ def reference_substep_s(p: TrajectoryParams | TrajectoryConst) -> float:
     0.2 m/s of velocity) made the velocity chatter at its limit on a 10 m horizontal leg and the
     reference climbed 0.37 m while its target was 0.19 m below (found by tests/fuzz); in 10 ms
     steps it does not."""
-    return min(REFERENCE_SUBSTEP_S, sqrt(SUBSTEP_SPEED_FRACTION * p.max_speed_m_s / p.max_jerk_m_s3))
+    return min(REFERENCE_SUBSTEP_S, math.sqrt(SUBSTEP_SPEED_FRACTION * p.max_speed_m_s / p.max_jerk_m_s3))
 
 
 @jitable

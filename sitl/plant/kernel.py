@@ -41,7 +41,7 @@ from companion.control.attitude import (
     attitude_init,
     attitude_step,
 )
-from companion.control.jit import chosen_by_type, depends_on, jitable, kernel, numba_available
+from companion.control.jit import chosen_by_type, compile_once, depends_on, jitable, kernel, numba_available
 from companion.control.outer_loop import (
     AttitudeSetpoint,
     LoopConst,
@@ -795,7 +795,9 @@ def _fly_in_lanes(family: type, rows: NDArray[np.float64], forces: NDArray[np.fl
 
 
 def _in_threads(fn: object, jobs: list[tuple[object, ...]]) -> None:
-    """``fn(*job)`` for each job, each in its own thread (the caller's for a single job)."""
+    """``fn(*job)`` for each job, each in its own thread (the caller's for a single job), ``fn``
+    compiled first, once among the processes that need it at once (:func:`compile_once`)."""
+    compile_once(fn, *jobs[0])
     if len(jobs) == 1:
         fn(*jobs[0])  # type: ignore[operator]
         return
