@@ -27,14 +27,16 @@ experiments: setup
 
 # everything but the real autopilots four at a time on two cores (a two-worker run kept the cores
 # only 44 % busy: sleeping real-time flights, process starts; lockstep flights do not mind a busy
-# host), then the real-autopilot tier, PX4's tests then ArduPilot's, each one at a time (each boots
-# its autopilot; skipped with the reason where no build is found - see docs/autopilots.md). The two
-# tiers do not run side by side: PX4 SIH flies in real time, and beside ArduCopter it was starved in
-# 2 of 5 runs (docs/benchmarks.md, "The test suite"); the slowest tests named
+# host), then the real-autopilot tier, PX4's tests then ArduPilot's, each two at a time (each test
+# boots its own autopilot, on firmware instances of its worker's own: tests/helpers/firmware.py;
+# one at a time the tiers kept the cores 26 % busy; skipped with the reason where no build is found
+# - see docs/autopilots.md). The two tiers do not run side by side: PX4 SIH flies in real time, and
+# beside ArduCopter it was starved in 2 of 5 runs (docs/benchmarks.md, "The test suite"); the
+# slowest tests named
 test: setup lint
 	$(PY) -m pytest -q -n 4 -m "not firmware" --durations=25
-	$(PY) -m pytest -q -m "firmware and not ardupilot" --durations=10; px4=$$?; \
-	$(PY) -m pytest -q -m "firmware and ardupilot" --durations=10; ardupilot=$$?; \
+	$(PY) -m pytest -q -n 2 -m "firmware and not ardupilot" --durations=10; px4=$$?; \
+	$(PY) -m pytest -q -n 2 -m "firmware and ardupilot" --durations=10; ardupilot=$$?; \
 	test $$px4 -eq 0 -a $$ardupilot -eq 0
 
 # the long fuzz run, new examples every run (CI runs the same tests with 150 fixed examples each,

@@ -7,22 +7,35 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from helpers.firmware import worker_instance
 from sitl.firmware.builds import arducopter_binary, px4_build
+
+N = worker_instance(4)
+"""a firmware instance of this test process's own (tests/helpers/firmware.py)"""
+INSTANCE = str(N)
 
 pytestmark = [pytest.mark.autopilot, pytest.mark.integration]
 
-WHERE = {"px4": ("udpin://0.0.0.0:14546", ["px4", "-d", "-i", "6"]),
-         "ardupilot": ("tcp://127.0.0.1:5820", ["arducopter", "-I", "6"])}
+WHERE = {"px4": (f"udpin://0.0.0.0:{14540 + N}", ["px4", "-d", "-i", INSTANCE]),
+         "ardupilot": (f"tcp://127.0.0.1:{5760 + 10 * N}", ["arducopter", "-I", INSTANCE])}
 
 
 def _running(argv_fragment: list[str]) -> list[str]:
-    out = subprocess.run(["ps", "-eww", "-o", "pid,args"], capture_output=True, text=True).stdout.splitlines()
-    return [line for line in out if all(f" {a}" in f" {line} " or line.split()[1].endswith(a) for a in argv_fragment)
-            and "pytest" not in line]
+    """The processes whose program is named ``argv_fragment[0]`` and whose arguments hold the rest
+    in order, word for word (a word's tail is not a match: ``px4`` ends in 4, the instance number)."""
+    program, args = argv_fragment[0], argv_fragment[1:]
+    found = []
+    for line in subprocess.run(["ps", "-eww", "-o", "pid,args"], capture_output=True, text=True).stdout.splitlines():
+        words = line.split()[1:]
+        if (words and Path(words[0]).name == program and "pytest" not in line
+                and any(words[i:i + len(args)] == args for i in range(1, len(words)))):
+            found.append(line)
+    return found
 
 
 @pytest.mark.parametrize("firmware", ["px4", "ardupilot"])
@@ -31,7 +44,8 @@ def test_ctrl_c_stops_the_firmware_and_the_bridge(firmware):  # type: ignore[no-
     if build is None:
         pytest.skip(why)
     url, argv = WHERE[firmware]
-    p = subprocess.Popen([sys.executable, "-m", "sitl", "--firmware", firmware, "--instance", "6", "--speedup", "4"],
+    p = subprocess.Popen([sys.executable, "-m", "sitl", "--firmware", firmware, "--instance", INSTANCE,
+                          "--speedup", "4"],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         banner = p.stdout.readline()  # type: ignore[union-attr]
@@ -66,8 +80,8 @@ def test_with_a_signing_key_the_firmware_answers_only_signed_frames_and_signs_it
         pytest.skip(why)
     key = write_key_file(tmp_path / "key")
     url, _ = WHERE[firmware]
-    p = subprocess.Popen([sys.executable, "-m", "sitl", "--firmware", firmware, "--instance", "6", "--speedup", "4",
-                          "--signing-key-file", str(tmp_path / "key")],
+    p = subprocess.Popen([sys.executable, "-m", "sitl", "--firmware", firmware, "--instance", INSTANCE,
+                          "--speedup", "4", "--signing-key-file", str(tmp_path / "key")],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     conn = None
     try:

@@ -17,6 +17,7 @@ from pymavlink import mavutil
 
 from companion.mavlink.params import PLANT_COMPID
 from companion.vehicle_process import FirmwareVehicle
+from helpers.firmware import worker_instance
 from sitl.firmware.builds import arducopter_binary, px4_build
 
 pytestmark = [pytest.mark.autopilot, pytest.mark.integration]
@@ -33,7 +34,7 @@ def test_a_tracking_dropout_on_the_ground_keeps_the_height(firmware):  # type: i
     build, why = (px4_build if firmware == "px4" else arducopter_binary)()
     if build is None:
         pytest.skip(why)
-    vehicle = FirmwareVehicle(firmware, speedup=4.0, lockstep_ms=0, instance=6)
+    vehicle = FirmwareVehicle(firmware, speedup=4.0, lockstep_ms=0, instance=worker_instance(3))
     link = None
     try:
         link = mavutil.mavlink_connection(_pymavlink_url(vehicle.url), source_system=245)

@@ -24,6 +24,7 @@ import pytest
 
 from companion.plots import load_timeseries
 from companion.vehicle_process import FirmwareVehicle
+from helpers.firmware import worker_instance
 from sitl.firmware.builds import arducopter_binary, px4_build
 
 from .conftest import segments
@@ -82,7 +83,8 @@ def hover45(request, tmp_path_factory):  # type: ignore[no-untyped-def]
     def companion(mission: str, url: str, *args: str) -> CompanionProcess:
         return CompanionProcess(mission, url, out, *args)
 
-    vehicle = FirmwareVehicle(firmware, "--firmware-param", f"{TILT_LIMIT[firmware]}=60", speedup=SPEEDUP, instance=5)
+    vehicle = FirmwareVehicle(firmware, "--firmware-param", f"{TILT_LIMIT[firmware]}=60", speedup=SPEEDUP,
+                              instance=worker_instance(2))
     try:
         flights["autopilot"] = fly(companion, vehicle, "missions/hover45.toml", "--controller", "autopilot")
         flights["ism_do"] = fly(companion, vehicle, "missions/hover45.toml")
@@ -129,7 +131,7 @@ def test_the_release_of_the_weight_is_recovered(hover45):  # type: ignore[no-unt
 @pytest.mark.parametrize("firmware", ["px4", "ardupilot"])
 def test_a_motor_losing_20_percent_in_a_hover(firmware, companion):  # type: ignore[no-untyped-def]
     _found(firmware)
-    vehicle = FirmwareVehicle(firmware, speedup=SPEEDUP, instance=5)
+    vehicle = FirmwareVehicle(firmware, speedup=SPEEDUP, instance=worker_instance(2))
     try:
         seg = fly(companion, vehicle, "missions/motor_fault.toml")
     finally:

@@ -142,7 +142,7 @@ def test_square_twice_in_one_boot_within_px4s_own_figure(px4_build, companion, b
         c = fly_clear(companion, "missions/square_gps.toml", px4.url, args, ("square",), label, 240)
         return segments(c.flight_dir())
 
-    with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
+    with Px4Sih(px4_build, speed=SPEED) as px4:
         figures = {"px4": fly("px4", "--controller", "autopilot")["square"]["rms_error_m"]}
         for k in (1, 2):
             seg = fly(f"ism_do_{k}", "--backend", backend)
@@ -183,7 +183,7 @@ def test_hold_and_a_bumpless_switch_to_offboard(px4_build, companion):
     steady hold after the switch is not bounded here: the mission's hold point is where the
     vehicle took off, and flying back from PX4's wander to it tilts by up to ~18 deg by design. The
     vehicle must not touch the ground from the switch to the end of the hold."""
-    with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
+    with Px4Sih(px4_build, speed=SPEED) as px4:
         c = fly_clear(companion, "missions/hold_gps.toml", px4.url, (), ("2: offboard", "hold"), "hold", 180)
     seg = segments(c.flight_dir())
     hold = seg["hold"]
@@ -194,7 +194,7 @@ def test_hold_and_a_bumpless_switch_to_offboard(px4_build, companion):
 
 @pytest.mark.parametrize("backend", ["pymavlink", "mavsdk"])
 def test_ctrl_c_mid_square_holds_lands_and_disarms(px4_build, companion, backend):
-    with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
+    with Px4Sih(px4_build, speed=SPEED) as px4:
         c = companion("missions/square_gps.toml", px4.url, "--backend", backend)
         c.wait_for("step square", timeout=120)
         time.sleep(2.0)
@@ -219,7 +219,7 @@ def test_companion_killed_mid_square_px4s_failsafe_lands_it(px4_build, companion
     earlier); disarmed within 30 s more, and on the ground by PX4's land detector."""
     from pymavlink import mavutil as mu
 
-    with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
+    with Px4Sih(px4_build, speed=SPEED) as px4:
         c = companion("missions/square_gps.toml", px4.url, "--backend", backend)
         c.wait_for("step square", timeout=120)
         time.sleep(1.0)
@@ -261,7 +261,7 @@ def _first_stamp(m: mavutil.mavfile, timeout: float) -> int:
 def test_a_gcs_taking_control_ends_the_mission_and_the_companion_lets_go(px4_build, companion):
     """A ground station switches PX4 to HOLD mid-square: the companion stops streaming, says why and
     exits 1; PX4 keeps holding (the companion neither fights for control nor lands it)."""
-    with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
+    with Px4Sih(px4_build, speed=SPEED) as px4:
         c = companion("missions/square_gps.toml", px4.url)
         c.wait_for("step square", timeout=120)
         gcs = mavutil.mavlink_connection(f"udpout:127.0.0.1:{px4.gcs_port}", source_system=201)
@@ -290,7 +290,7 @@ def test_a_refusal_reads_as_text_from_px4s_events(px4_build, backend):
     from companion.link import LinkError, open_link
 
     async def refused() -> str:
-        with Px4Sih(px4_build, instance=0, speed=SPEED) as px4:
+        with Px4Sih(px4_build, speed=SPEED) as px4:
             link = open_link(px4.url, backend)
             stop = asyncio.Event()
             async with link:

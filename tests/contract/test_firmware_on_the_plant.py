@@ -27,7 +27,7 @@ from companion.control.params import VehicleParams
 from companion.mavlink.modes import PX4_MODES, px4_custom_mode
 from companion.mavlink.params import PLANT_COMPID
 from companion.vehicle_process import FirmwareVehicle
-from helpers.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4
+from helpers.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4, worker_instance
 
 from .conftest import Target, latest, stream, wait
 from .test_contract import (_fast_streams, _fly_and_record, _guided_airborne, _hover_throttle, _roll, _set_param,
@@ -71,10 +71,11 @@ def px4_on(request) -> Iterator[Sim]:
             m.close()
             yield sim
         return
+    n = worker_instance(1)
     v = FirmwareVehicle("px4", "--firmware-param", f"MIS_TAKEOFF_ALT={ALTITUDE_M:g}", speedup=4.0, lockstep_ms=0,
-                        instance=2)
+                        instance=n)
     try:
-        sim = Sim("PX4 v1.16 on the plant", "udpin:127.0.0.1:14542", sysid=3, hold_bound_m=0.05)
+        sim = Sim("PX4 v1.16 on the plant", f"udpin:127.0.0.1:{14540 + n}", sysid=n + 1, hold_bound_m=0.05)
         m = sim.connect()
         heartbeat(m)
         thrust_max = _param(m, sim.sysid, PLANT_COMPID, "SIM_THRUST_MAX")
@@ -178,9 +179,10 @@ def copter_on(request) -> Iterator[Sim]:
         with ArduCopterSitl(binary, speedup=4.0) as a:
             yield Sim("ArduCopter SITL", f"tcp:127.0.0.1:{a.tcp_port}", hold_bound_m=0.6)
         return
-    v = FirmwareVehicle("ardupilot", speedup=4.0, lockstep_ms=0, instance=2)
+    n = worker_instance(1)
+    v = FirmwareVehicle("ardupilot", speedup=4.0, lockstep_ms=0, instance=n)
     try:
-        sim = Sim("ArduCopter on the plant", "tcp:127.0.0.1:5780", hold_bound_m=0.05)
+        sim = Sim("ArduCopter on the plant", f"tcp:127.0.0.1:{5760 + 10 * n}", hold_bound_m=0.05)
         sim.hover_physics = VehicleParams().weight_n / VehicleParams().thrust_max_n
         yield sim
     finally:

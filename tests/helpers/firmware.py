@@ -28,7 +28,25 @@ from pathlib import Path
 
 from sitl.firmware.builds import autopilots_root, find_arducopter, find_px4
 
-__all__ = ["find_px4", "find_arducopter", "Px4Sih", "ArduCopterSitl", "autopilots_root"]
+__all__ = ["find_px4", "find_arducopter", "Px4Sih", "ArduCopterSitl", "autopilots_root", "worker_instance"]
+
+INSTANCES_PER_WORKER = 5
+"""firmware instances each test process may use: pytest-xdist's worker k takes ``5 k .. 5 k + 4``.
+PX4's API link moves with its instance only up to 9 (its px4-rc.mavlink sends every instance above
+9 to 14549), so the tier runs at most two workers"""
+
+
+def worker_instance(n: int = 0) -> int:
+    """Firmware instance ``n`` (0-4) of this test process: ``make test`` runs the tier two tests at
+    a time, and two firmware instances of one number would share their ports and PX4's lock file."""
+    if not 0 <= n < INSTANCES_PER_WORKER:
+        raise ValueError(f"instance {n}: a test process has instances 0-{INSTANCES_PER_WORKER - 1}")
+    worker = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw") or 0)
+    instance = n + INSTANCES_PER_WORKER * worker
+    if instance > 9:
+        raise RuntimeError(f"pytest worker {worker}: PX4's API link moves with its instance only up to 9; "
+                           f"run the real-autopilot tier with at most two workers")
+    return instance
 
 
 def _port_free(port: int) -> bool:
@@ -49,7 +67,7 @@ class Px4Sih:
     station link listens on 18570+N; its system id is N+1."""
 
     build: Path
-    instance: int = 0
+    instance: int = field(default_factory=worker_instance)
     speed: float = 4.0
     params: dict[str, float] = field(default_factory=dict)
     """set at boot (PX4_PARAM_<NAME>)"""
@@ -75,10 +93,13 @@ class Px4Sih:
 
     def start(self) -> Px4Sih:
         if not (_port_free(self.api_port) and _port_free(14580 + self.instance)):  # a plain `sitl` holds 14580
-            free = next((n for n in range(10) if _port_free(14540 + n) and _port_free(14580 + n)
+            first = worker_instance(0)
+            free = next((n for n in range(first, first + INSTANCES_PER_WORKER)
+                         if _port_free(14540 + n) and _port_free(14580 + n)
                          and not Path(f"/tmp/px4_lock-{n}").exists()), None)
             if free is None:
-                raise RuntimeError(f"UDP {self.api_port} is in use, and so are the ports of instances 0-9")
+                raise RuntimeError(f"UDP {self.api_port} is in use, and so are the ports of instances "
+                                   f"{first}-{first + INSTANCES_PER_WORKER - 1}")
             self.instance = free  # another instance or client holds this one's ports: take a free one
         self.workdir = Path(tempfile.mkdtemp(prefix=f"px4sih-{self.instance}-"))
         env = {k: v for k, v in os.environ.items() if not k.startswith("PX4_PARAM_")}
@@ -122,7 +143,7 @@ class ArduCopterSitl:
     SERIAL0 sends there instead)."""
 
     binary: Path
-    instance: int = 0
+    instance: int = field(default_factory=worker_instance)
     speedup: float = 4.0
     params: dict[str, float] = field(default_factory=dict)
     home: str = "47.397742,8.545594,488.0,0"
