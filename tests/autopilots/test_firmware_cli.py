@@ -15,14 +15,16 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from helpers.firmware import worker_instance
 from sitl.firmware.builds import arducopter_binary, px4_build
 
-N = worker_instance(4)
-"""a firmware instance of this test process's own (tests/helpers/firmware.py)"""
-INSTANCE = str(N)
 
 pytestmark = [pytest.mark.autopilot, pytest.mark.integration]
 
-WHERE = {"px4": (f"udpin://0.0.0.0:{14540 + N}", ["px4", "-d", "-i", INSTANCE]),
-         "ardupilot": (f"tcp://127.0.0.1:{5760 + 10 * N}", ["arducopter", "-I", INSTANCE])}
+def where(firmware: str) -> tuple[str, str, list[str]]:
+    """A firmware instance of this test process's own (tests/helpers/firmware.py): its number, the
+    companion's URL, and the words of the firmware's command line that name it."""
+    n = worker_instance(4)
+    if firmware == "px4":
+        return str(n), f"udpin://0.0.0.0:{14540 + n}", ["px4", "-d", "-i", str(n)]
+    return str(n), f"tcp://127.0.0.1:{5760 + 10 * n}", ["arducopter", "-I", str(n)]
 
 
 def _running(argv_fragment: list[str]) -> list[str]:
@@ -43,8 +45,8 @@ def test_ctrl_c_stops_the_firmware_and_the_bridge(firmware):  # type: ignore[no-
     build, why = (px4_build if firmware == "px4" else arducopter_binary)()
     if build is None:
         pytest.skip(why)
-    url, argv = WHERE[firmware]
-    p = subprocess.Popen([sys.executable, "-m", "sitl", "--firmware", firmware, "--instance", INSTANCE,
+    instance, url, argv = where(firmware)
+    p = subprocess.Popen([sys.executable, "-m", "sitl", "--firmware", firmware, "--instance", instance,
                           "--speedup", "4"],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
@@ -79,8 +81,8 @@ def test_with_a_signing_key_the_firmware_answers_only_signed_frames_and_signs_it
     if build is None:
         pytest.skip(why)
     key = write_key_file(tmp_path / "key")
-    url, _ = WHERE[firmware]
-    p = subprocess.Popen([sys.executable, "-m", "sitl", "--firmware", firmware, "--instance", INSTANCE,
+    instance, url, _ = where(firmware)
+    p = subprocess.Popen([sys.executable, "-m", "sitl", "--firmware", firmware, "--instance", instance,
                           "--speedup", "4", "--signing-key-file", str(tmp_path / "key")],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     conn = None
