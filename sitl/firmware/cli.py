@@ -37,7 +37,7 @@ from .bridge import Bridge, Pace, PlantSocket
 from .builds import arducopter_binary, px4_build
 from .lockstep import CompanionGate
 from .plant_component import PlantComponent, estimator_origin
-from .px4 import Px4Bridge, Px4Ports, Px4Process
+from .px4 import PX4_MAX_INSTANCE, Px4Bridge, Px4Ports, Px4Process
 from .relay import TcpRelay, UdpRelay
 from .signed_link import SignedLink
 from .world import FirmwareWorld
@@ -152,6 +152,10 @@ class Session:
 
 def run(args: argparse.Namespace, scenario: Scenario, origin: GeoOrigin) -> int:
     """``sitl --firmware``: start, serve until Ctrl-C (or ``--duration``), stop both."""
+    if args.firmware == "px4" and not 0 <= args.instance <= PX4_MAX_INSTANCE:
+        print(f"sitl: error: --instance {args.instance}: PX4's instances are 0-{PX4_MAX_INSTANCE} (its MAVLink "
+              f"links move with the instance only that far)", file=sys.stderr)
+        return 2
     find = px4_build if args.firmware == "px4" else arducopter_binary
     build, why = find(args.firmware_path)
     if build is None:

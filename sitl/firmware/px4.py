@@ -35,6 +35,12 @@ FRAME_STEPS = 4
 """plant steps (1 ms) per HIL_SENSOR: PX4's 250 Hz IMU"""
 
 
+PX4_MAX_INSTANCE = 9
+"""PX4's highest instance: its own px4-rc.mavlink sends the API link of every instance above 9 to
+14549, and instance 10's companion port would be 14550, where every instance's ground-station link
+sends"""
+
+
 @dataclass(frozen=True)
 class Px4Ports:
     instance: int = 0

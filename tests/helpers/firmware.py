@@ -27,26 +27,23 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from sitl.firmware.builds import autopilots_root, find_arducopter, find_px4
+from sitl.firmware.px4 import PX4_MAX_INSTANCE
 
 __all__ = ["find_px4", "find_arducopter", "Px4Sih", "ArduCopterSitl", "autopilots_root", "worker_instance"]
 
 INSTANCES_PER_WORKER = 5
 """firmware instances each test process may use: pytest-xdist's worker k takes ``5 k .. 5 k + 4``.
-PX4's API link moves with its instance only up to 9 (its px4-rc.mavlink sends every instance above
-9 to 14549), so the tier runs at most two workers"""
+PX4's go up to 9 (:data:`~sitl.firmware.px4.PX4_MAX_INSTANCE`), so PX4's tests run on at most two
+workers; ArduPilot's have no such limit"""
 
 
 def worker_instance(n: int = 0) -> int:
-    """Firmware instance ``n`` (0-4) of this test process: ``make test`` runs the tier two tests at
-    a time, and two firmware instances of one number would share their ports and PX4's lock file."""
+    """Firmware instance ``n`` (0-4) of this test process: ``make test`` runs the tier several tests
+    at a time, and two firmware instances of one number would share their ports and PX4's lock file."""
     if not 0 <= n < INSTANCES_PER_WORKER:
         raise ValueError(f"instance {n}: a test process has instances 0-{INSTANCES_PER_WORKER - 1}")
     worker = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw") or 0)
-    instance = n + INSTANCES_PER_WORKER * worker
-    if instance > 9:
-        raise RuntimeError(f"pytest worker {worker}: PX4's API link moves with its instance only up to 9; "
-                           f"run the real-autopilot tier with at most two workers")
-    return instance
+    return n + INSTANCES_PER_WORKER * worker
 
 
 def _port_free(port: int) -> bool:
@@ -92,6 +89,9 @@ class Px4Sih:
         return self.instance + 1
 
     def start(self) -> Px4Sih:
+        if self.instance > PX4_MAX_INSTANCE:
+            raise RuntimeError(f"PX4 instance {self.instance}: PX4's instances are 0-{PX4_MAX_INSTANCE}; run "
+                               f"PX4's tests on at most two pytest workers")
         if not (_port_free(self.api_port) and _port_free(14580 + self.instance)):  # a plain `sitl` holds 14580
             first = worker_instance(0)
             free = next((n for n in range(first, first + INSTANCES_PER_WORKER)

@@ -127,6 +127,7 @@ def run_firmware(capsys, *args: str) -> tuple[int, list[str]]:  # type: ignore[n
     (("--firmware", "px4", "--boot-time", "100"), "--boot-time is the bundled autopilot's"),
     (("--layout", "x"), "--layout needs --firmware"),
     (("--position-source", "gnss"), "--position-source needs --firmware"),
+    (("--firmware", "px4", "--instance", "10"), "PX4's instances are 0-9"),
 ])
 def test_firmware_options_are_checked(capsys, args, says) -> None:  # type: ignore[no-untyped-def]
     code, err = run_firmware(capsys, *args)
