@@ -29,7 +29,8 @@ from sitl.firmware.builds import arducopter_binary, px4_build
 
 from .conftest import segments
 
-pytestmark = [pytest.mark.autopilot, pytest.mark.integration]
+pytestmark = [pytest.mark.autopilot, pytest.mark.integration, pytest.mark.xdist_group("firmware_plant")]
+"""one worker takes all of this module's tests (``--dist loadgroup``), so its flights are flown once"""
 
 SPEEDUP = 20.0
 """the upper bound; lockstep with the companion sets the pace (7-11x measured on two cores)"""
