@@ -145,11 +145,16 @@ def compile_once(dispatcher: Any, *args: Any) -> None:
     signature = tuple(typeof(a) for a in args)
     if signature in dispatcher.overloads:
         return
-    folder = cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}.lock", "w") as lock:
-        with _locked(lock):
-            dispatcher.compile(signature)
+    name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}.lock"
+    try:
+        folder = cache_dir()
+        folder.mkdir(parents=True, exist_ok=True)
+        lock = open(folder / name, "w")
+    except OSError:  # no cache folder to write (read-only home): compile here, as numba would
+        dispatcher.compile(signature)
+        return
+    with lock, _locked(lock):
+        dispatcher.compile(signature)
 
 
 @contextlib.contextmanager

@@ -1,12 +1,14 @@
 """Processes that need the same compiled kernel at once compile it once (companion/control/jit.py,
-compile_once): on an empty cache the test suite's four workers each compiled every kernel they flew."""
+compile_once): on an empty cache the test suite's workers each compiled every kernel they flew."""
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -28,39 +30,59 @@ def summed(n: int) -> float:
 '''
 
 ASK = '''
-import json, os, sys, time
+import json, sys, time
 from pathlib import Path
 sys.path[:0] = [{module_dir!r}, {root!r}]
-from companion.control.jit import compile_once
+from companion.control.jit import cache_dir, compile_once
 from tiny_kernel import summed
+print(cache_dir(), flush=True)
 here, other = Path({ready!r} + sys.argv[1]), Path({ready!r} + sys.argv[2])
 here.touch()
 while not other.exists():  # both ask at the same moment
     time.sleep(0.001)
-{ask}
+compile_once(summed, 4)
 print(json.dumps({{"misses": sum(summed.stats.cache_misses.values()),
-                   "hits": sum(summed.stats.cache_hits.values()), "value": summed(4)}}))
+                   "hits": sum(summed.stats.cache_hits.values()), "value": summed(4)}}), flush=True)
 '''
 
 
-def _two_at_once(tmp_path: Path, ask: str) -> list[dict]:
+def _start(tmp_path: Path, me: str, other: str) -> subprocess.Popen[str]:
     module_dir = tmp_path / "mod"
-    module_dir.mkdir(parents=True)
+    module_dir.mkdir(parents=True, exist_ok=True)
     (module_dir / "tiny_kernel.py").write_text(KERNEL_MODULE)
-    code = ASK.format(module_dir=str(module_dir), root=str(ROOT), ready=str(tmp_path / "ready-"), ask=ask)
+    code = ASK.format(module_dir=str(module_dir), root=str(ROOT), ready=str(tmp_path / "ready-"))
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
-    procs = [subprocess.Popen([sys.executable, "-c", code, a, b], env=env, stdout=subprocess.PIPE, text=True)
-             for a, b in (("a", "b"), ("b", "a"))]
-    return [json.loads(p.communicate(timeout=120)[0]) for p in procs]
+    return subprocess.Popen([sys.executable, "-c", code, me, other], env=env, stdout=subprocess.PIPE, text=True)
 
 
 def test_two_processes_asking_at_once_compile_the_kernel_once_and_both_fly_it(tmp_path: Path) -> None:
     """GIVEN an empty cache and two processes that ask for the same kernel at the same moment THEN
     one compiles it (a cache miss) and the other, having waited, loads it (a hit); both get its
-    numbers. Without compile_once (the kernel's own first call), both compile: the control case."""
-    with_lock = _two_at_once(tmp_path / "once", "compile_once(summed, 4)")
-    assert sorted((r["misses"], r["hits"]) for r in with_lock) == [(0, 1), (1, 0)], with_lock
-    assert all(r["value"] == 3.0 for r in with_lock)
+    numbers."""
+    procs = [_start(tmp_path, "a", "b"), _start(tmp_path, "b", "a")]
+    results = [json.loads(p.communicate(timeout=120)[0].splitlines()[-1]) for p in procs]
+    assert sorted((r["misses"], r["hits"]) for r in results) == [(0, 1), (1, 0)], results
+    assert all(r["value"] == 3.0 for r in results)
 
-    without = _two_at_once(tmp_path / "plain", "summed(4)")
-    assert [r["misses"] for r in without] == [1, 1], without
+
+def test_a_process_waits_while_another_holds_the_kernels_lock_then_compiles_it(tmp_path: Path, monkeypatch) -> None:
+    """GIVEN the kernel's lock held (as by a process compiling it) WHEN a process asks for the
+    kernel THEN it waits, compiling nothing, until the lock is let go; then it compiles it. (The
+    kernel's own first call, without compile_once, would not wait.)"""
+    from companion.control.jit import cache_dir
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    cache = cache_dir()
+    cache.mkdir(parents=True)
+    (tmp_path / "ready-b").touch()  # no partner: go at once
+    with open(cache / "tiny_kernel.summed.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        p = _start(tmp_path, "a", "b")
+        assert Path(p.stdout.readline().strip()) == cache  # type: ignore[union-attr]
+        time.sleep(3.0)  # ample for the small kernel to compile, were it not waiting
+        waiting = p.poll() is None
+        compiled = list(cache.rglob("*summed*.nbi"))
+        fcntl.flock(lock, fcntl.LOCK_UN)
+    result = json.loads(p.communicate(timeout=120)[0].splitlines()[-1])
+    assert waiting and not compiled, compiled
+    assert result == {"misses": 1, "hits": 0, "value": 3.0}
