@@ -28,20 +28,16 @@ experiments: setup
 # everything but the real autopilots six at a time on two cores (two workers kept the cores only 44 %
 # busy: sleeping real-time flights, process starts; lockstep flights do not mind a busy host; six
 # finished in 321 s where four took 360, docs/benchmarks.md), then the real-autopilot tier: PX4's
-# tests two at a time (PX4 has instances 0-9 only) but for the MAVSDK examples, which have the host
-# to themselves (`alone`: their client, on the wall clock, was starved beside another firmware
-# test), then ArduPilot's three at a time. Each test
-# boots its own autopilot on firmware instances of its worker's own (tests/helpers/firmware.py);
-# one at a time the tiers kept the cores 26 % busy; a module whose tests share one boot stays on
-# one worker (loadgroup); skipped with the reason where no build is found (docs/autopilots.md).
-# The two tiers do not run side by side: PX4 SIH flies in real time, and beside ArduCopter it was
-# starved (docs/benchmarks.md, "The test suite"); the slowest tests named
+# tests one at a time (two at a time, two fresh-clone runs in two each failed a PX4 flight: a client
+# on the wall clock or PX4's estimator starved), then ArduPilot's three at a time, each test booting
+# its autopilot on instances of its worker's own (tests/helpers/firmware.py), a module whose tests
+# share one boot on one worker (loadgroup). Skipped with the reason where no build is found
+# (docs/autopilots.md). The slowest tests named
 test: setup lint
 	$(PY) -m pytest -q -n 6 -m "not firmware" --durations=25
-	$(PY) -m pytest -q -n 2 --dist loadgroup -m "firmware and not ardupilot and not alone" --durations=10; px4=$$?; \
-	$(PY) -m pytest -q -m "firmware and not ardupilot and alone" --durations=5; alone=$$?; \
+	$(PY) -m pytest -q -m "firmware and not ardupilot" --durations=10; px4=$$?; \
 	$(PY) -m pytest -q -n 3 --dist loadgroup -m "firmware and ardupilot" --durations=10; ardupilot=$$?; \
-	test $$px4 -eq 0 -a $$alone -eq 0 -a $$ardupilot -eq 0
+	test $$px4 -eq 0 -a $$ardupilot -eq 0
 
 # the long fuzz run, new examples every run (CI runs the same tests with 150 fixed examples each,
 # seeded from each test's name); FUZZ_EXAMPLES to change it; a failure prints its reproduce blob

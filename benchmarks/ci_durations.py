@@ -4,10 +4,9 @@
     python benchmarks/ci_durations.py ci.log
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
-``make test`` prints its pytest summaries in order: everything but the firmware, then PX4's tier
-(two summaries: its tests two at a time, then those that run alone), then ArduPilot's
-(docs/autopilots.md); a log of three summaries (PX4's tier in one) reads too. This prints each
-one's count and wall time and, where the log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run.
+``make test`` prints three pytest summaries in order: everything but the firmware, then PX4's
+tier, then ArduPilot's (docs/autopilots.md). This prints each one's count and wall time and,
+where the log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run.
 ``--readme`` replaces the sentence between README's ``<!-- ci-durations -->`` markers with them,
 so that no duration in the README is typed by hand.
 """
@@ -38,14 +37,6 @@ def durations(text: str) -> tuple[list[tuple[int, int, float]], float | None]:
     return runs, total
 
 
-def by_tier(runs: list[tuple[int, int, float]]) -> list[tuple[int, int, float]]:
-    """Four summaries (PX4's tier in two runs, one after the other) as three: PX4's added up."""
-    if len(runs) != 4:
-        return runs
-    (f1, p1, s1), (f2, p2, s2) = runs[1], runs[2]
-    return [runs[0], (f1 + f2, p1 + p2, s1 + s2), runs[3]]
-
-
 def sentence(runs: list[tuple[int, int, float]], total: float, commit: str, date: str) -> str:
     """README's words for one fresh-clone run (three summaries, the whole run)."""
     (_, main, main_s), (_, px4, px4_s), (_, ap, ap_s) = runs
@@ -72,7 +63,6 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--date", default=time.strftime("%Y-%m-%d", time.gmtime()))
     args = ap.parse_args(argv)
     runs, total = durations(args.log.read_text(errors="replace"))
-    runs = by_tier(runs)
     names = ["everything but the firmware", "PX4's tier", "ArduPilot's tier"]
     for name, (failed, passed, seconds) in zip(names, runs):
         print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")

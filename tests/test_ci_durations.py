@@ -44,17 +44,6 @@ def test_the_readme_sentence_is_replaced_between_its_markers_and_nothing_else(tm
             "889 tests in 363 s, then 29 PX4 tests in 383 s, then 21 ArduPilot tests in 400 s.") in text
 
 
-def test_pxs_tier_in_two_runs_is_added_up(tmp_path):
-    """make test runs PX4's tier as two pytest runs (two at a time, then the tests that run alone)."""
-    log = LOG.replace("29 passed, 910 deselected in 382.96s (0:06:22)\n",
-                      "25 passed, 914 deselected in 150.50s (0:02:30)\n....\n4 passed, 935 deselected in 97.50s\n")
-    r = run(tmp_path, log)
-    assert r.returncode == 0, r.stderr
-    assert "PX4's tier: 29 passed in 248 s" in r.stdout and "ArduPilot's tier: 21 passed in 400 s" in r.stdout
-    r = run(tmp_path, log.replace("4 passed, 935", "1 failed, 3 passed, 935"))
-    assert "PX4's tier: 28 passed, 1 failed in 248 s" in r.stdout
-
-
 def test_a_failed_or_partial_run_is_not_written(tmp_path):
     readme = tmp_path / "README.md"
     readme.write_text("<!-- ci-durations -->\nold\n<!-- /ci-durations -->\n")

@@ -35,14 +35,12 @@ from companion.vehicle_process import VehicleProcess
 from helpers.firmware import Px4Sih, find_px4
 from helpers.processes import ROOT, child_env, free_udp_port
 
-pytestmark = [pytest.mark.integration, pytest.mark.contract, pytest.mark.alone]
-"""alone: on PX4 SIH, with another firmware test beside it, the velocity example once read -0.71 m/s
-north for a hold (make test runs the examples one at a time after the rest of PX4's tier)"""
+pytestmark = [pytest.mark.integration, pytest.mark.contract]
 
 SPEED = {"bundled": 4.0, "firmware": 2.0}
 """vehicle seconds per wall second: MAVSDK resends the last setpoint at 20 Hz of wall time, 5-10 Hz of
-the vehicle's, well inside the offboard loss timeout (1 s). PX4 SIH stays at 2x: at 4x, two tests at
-a time, the velocity example once ended its 10 s hold disarmed on the ground"""
+the vehicle's, well inside the offboard loss timeout (1 s). PX4 SIH stays at 2x: at 4x, beside
+another firmware test, the velocity example once ended its 10 s hold disarmed on the ground"""
 
 
 @dataclass(frozen=True)
