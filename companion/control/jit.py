@@ -147,7 +147,9 @@ def compile_once(dispatcher: Any, *args: Any) -> None:
         return
     name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}.lock"
     try:
-        folder = cache_dir()
+        # the folder numba keeps this kernel's cache in (fixed when the kernel was built; cache_dir()
+        # now could differ: it digests the sources of the modules imported so far)
+        folder = Path(getattr(dispatcher._cache, "_cache_path", None) or cache_dir())
         folder.mkdir(parents=True, exist_ok=True)
         lock = open(folder / name, "w")
     except OSError:  # no cache folder to write (read-only home): compile here, as numba would

@@ -33,9 +33,9 @@ ASK = '''
 import json, sys, time
 from pathlib import Path
 sys.path[:0] = [{module_dir!r}, {root!r}]
-from companion.control.jit import cache_dir, compile_once
+from companion.control.jit import compile_once
 from tiny_kernel import summed
-print(cache_dir(), flush=True)
+print(summed._cache._cache_path, flush=True)
 here, other = Path({ready!r} + sys.argv[1]), Path({ready!r} + sys.argv[2])
 here.touch()
 while not other.exists():  # both ask at the same moment
@@ -46,12 +46,12 @@ print(json.dumps({{"misses": sum(summed.stats.cache_misses.values()),
 '''
 
 
-def _start(tmp_path: Path, me: str, other: str) -> subprocess.Popen[str]:
+def _start(tmp_path: Path, me: str, other: str, cache: str = "cache") -> subprocess.Popen[str]:
     module_dir = tmp_path / "mod"
     module_dir.mkdir(parents=True, exist_ok=True)
     (module_dir / "tiny_kernel.py").write_text(KERNEL_MODULE)
     code = ASK.format(module_dir=str(module_dir), root=str(ROOT), ready=str(tmp_path / "ready-"))
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / cache)}
     return subprocess.Popen([sys.executable, "-c", code, me, other], env=env, stdout=subprocess.PIPE, text=True)
 
 
@@ -65,14 +65,14 @@ def test_two_processes_asking_at_once_compile_the_kernel_once_and_both_fly_it(tm
     assert all(r["value"] == 3.0 for r in results)
 
 
-def test_a_process_waits_while_another_holds_the_kernels_lock_then_compiles_it(tmp_path: Path, monkeypatch) -> None:
+def test_a_process_waits_while_another_holds_the_kernels_lock_then_compiles_it(tmp_path: Path) -> None:
     """GIVEN the kernel's lock held (as by a process compiling it) WHEN a process asks for the
     kernel THEN it waits, compiling nothing, until the lock is let go; then it compiles it. (The
     kernel's own first call, without compile_once, would not wait.)"""
-    from companion.control.jit import cache_dir
-
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
-    cache = cache_dir()
+    # where the kernel's cache will be: numba's folder for its file, under the sources' digest
+    probe = _start(tmp_path, "probe", "probe", cache="probe-cache")
+    cache = tmp_path / "cache" / Path(probe.communicate(timeout=120)[0].splitlines()[0]).relative_to(
+        tmp_path / "probe-cache")
     cache.mkdir(parents=True)
     (tmp_path / "ready-b").touch()  # no partner: go at once
     with open(cache / "tiny_kernel.summed.lock", "w") as lock:
