@@ -137,6 +137,18 @@ def test_reference_filter_keeps_its_jerk_limit_when_the_speed_saturates():
     assert worst <= 20.0 * 1.05
 
 
+def _highest_and_last(p: TrajectoryParams, start_ned_m: tuple, legs: list[tuple[tuple, float]],
+                      dt: float) -> tuple[float, tuple]:
+    """The filter from ``start_ned_m`` through ``legs`` (target, seconds), stepped every ``dt``: the
+    highest point its reference reached (smallest z, NED) and where it ended."""
+    f = ReferenceFilter(p, start_ned_m)
+    top = start_ned_m[2]
+    for target, seconds in legs:
+        for _ in range(round(seconds / dt)):
+            top = min(top, f.update(target, 0.0, dt).pos_ned_m[2])
+    return top, f.pos_ned_m
+
+
 def test_reference_filter_stepped_at_10_hz_does_not_creep_out_of_a_ceiling():
     """At 10 Hz with a 5 rad/s bandwidth (w dt = 0.5) one step at a time, the speed limit made the
     vertical velocity limit-cycle on a horizontal leg and the reference crept 3 cm up from 1.0 m
@@ -144,18 +156,9 @@ def test_reference_filter_stepped_at_10_hz_does_not_creep_out_of_a_ceiling():
     integrates in 20 ms sub-steps: from 1.0 m up towards (0, 4, -0.5) at 0.1 m/s it never rises
     above where it started, and lands on what 100 Hz gives within 5 mm."""
     p = TrajectoryParams(max_speed_m_s=0.1, max_accel_m_s2=5.0, max_jerk_m_s3=25.0, bandwidth_rad_s=5.0)
-
-    def fly(dt: float) -> tuple[float, tuple]:
-        f = ReferenceFilter(p, (0.0, 0.0, -1.0))
-        for _ in range(round(0.1 / dt)):  # the fuzzed mission's 0.1 s hold at 0.5 m first
-            f.update((0.0, 0.0, -0.5), 0.0, dt)
-        top = -1.0
-        for _ in range(round(10.0 / dt)):
-            top = min(top, f.update((0.0, 4.0, -0.5), 0.0, dt).pos_ned_m[2])
-        return top, f.pos_ned_m
-
-    top, at_10hz = fly(0.1)
-    _, at_100hz = fly(0.01)
+    legs = [((0.0, 0.0, -0.5), 0.1), ((0.0, 4.0, -0.5), 10.0)]  # the fuzzed mission's 0.1 s hold at 0.5 m first
+    top, at_10hz = _highest_and_last(p, (0.0, 0.0, -1.0), legs, 0.1)
+    _, at_100hz = _highest_and_last(p, (0.0, 0.0, -1.0), legs, 0.01)
     assert top >= -1.0 - 1e-9, top
     assert np.allclose(at_10hz, at_100hz, atol=0.005), (at_10hz, at_100hz)
 
@@ -167,15 +170,8 @@ def test_reference_filter_with_a_jerk_limit_high_for_its_speed_does_not_chatter_
     1.0 m ceiling, tests/fuzz). The sub-step now keeps ``j h^2 <= v_max / 2``: stepped at 10 Hz the
     reference never rises above where it started and arrives where a 1 kHz filter does."""
     p = TrajectoryParams(max_speed_m_s=0.1, max_accel_m_s2=20.0, max_jerk_m_s3=500.0, bandwidth_rad_s=2.0)
-
-    def fly(dt: float) -> tuple[float, tuple]:
-        f = ReferenceFilter(p, (0.0, 0.0, -0.6875))
-        top = -0.6875
-        for _ in range(round(120.0 / dt)):  # arrives after ~110 s
-            top = min(top, f.update((0.0, 10.0, -0.5), 0.0, dt).pos_ned_m[2])
-        return top, f.pos_ned_m
-
-    top, at_10hz = fly(0.1)
-    _, at_1khz = fly(0.001)
+    legs = [((0.0, 10.0, -0.5), 120.0)]  # arrives after ~110 s
+    top, at_10hz = _highest_and_last(p, (0.0, 0.0, -0.6875), legs, 0.1)
+    _, at_1khz = _highest_and_last(p, (0.0, 0.0, -0.6875), legs, 0.001)
     assert top >= -0.6875 - 1e-6, top
     assert np.allclose(at_10hz, at_1khz, atol=0.005), (at_10hz, at_1khz)
