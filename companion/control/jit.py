@@ -19,7 +19,7 @@ holds the two within 1e-12 over an E3 flight).
 Compiled kernels are cached on disk (``cache=True``) in a folder named after a digest of the
 sources they are compiled from (:func:`cache_dir`): numba's own cache only watches the file of
 the kernel itself, so an edited law in another file would otherwise run stale code. Processes
-that need the same kernel at once compile it once (:func:`compile_once`): the test suite's four
+that need the same kernel at once compile it once (:func:`compile_once`): the test suite's
 workers each compiled every kernel they flew on an empty cache.
 """
 
