@@ -76,7 +76,10 @@ def test_no_timestamp_moves_or_stalls_the_companion_clock(sitl, companion):
     assert stats.get("stamp_jump_forward", 0) >= sent["jump_forward"], stats
     assert stats.get("stamp_backwards", 0) >= sent["backwards"], stats
     assert data["older_samples"] >= sent["repeat"], data
-    assert data["controller_time"]["dropped_s"] == 0.0, data["controller_time"]
+    # as in the wrap test below: before OFFBOARD the vehicle runs free, and on a loaded host one gap
+    # there may drop a fraction of a second of catch-up (0.103 s in a fresh-clone CI with six
+    # workers); a stamp that moved the clock (an hour forward, 30 s back) would drop seconds
+    assert data["controller_time"]["dropped_s"] < 0.25, data["controller_time"]
 
 
 WRAP_AFTER_S = 40.0
