@@ -39,8 +39,7 @@ pytestmark = [pytest.mark.integration, pytest.mark.contract]
 
 SPEED = {"bundled": 4.0, "firmware": 2.0}
 """vehicle seconds per wall second: MAVSDK resends the last setpoint at 20 Hz of wall time, 5-10 Hz of
-the vehicle's, well inside the offboard loss timeout (1 s). PX4 SIH stays at 2x: at 4x, beside
-another firmware test, the velocity example once ended its 10 s hold disarmed on the ground"""
+the vehicle's, well inside the offboard loss timeout (1 s). PX4 SIH flies them at 2x"""
 
 
 @dataclass(frozen=True)
@@ -312,8 +311,12 @@ def test_offboard_velocity_ned_example_flies_each_velocity_and_heading(vehicle):
             continue
         assert max(abs(a - b) for a, b in zip(vel, modelled)) < 0.35, (name, vel, want, modelled)
         assert abs(_wrap(yaw - want_yaw)) < 10.0, (name, yaw, want_yaw)
-    mode, armed, speed, _ = notes["after_stop"]
-    assert mode == FlightMode.HOLD and armed and speed < 0.5, notes["after_stop"]  # as after offboard_attitude
+    mode, armed, speed, down_m = notes["after_stop"]
+    # as after offboard_attitude, but a last step that ended on the ground may end disarmed there: PX4's
+    # land detector disarms a landed vehicle in any mode (COM_DISARM_LAND, 2 s; "Landing detected",
+    # "Disarmed by landing" in one flight beside the rest of the suite, 0.05 m from the ground)
+    on_ground = notes["down, face north"][5] < 1.0 and notes["ground_down_m"] - down_m < 0.5
+    assert mode == FlightMode.HOLD and (armed or on_ground) and speed < 0.5, notes["after_stop"]
 
 
 # --- offboard_velocity_body -------------------------------------------------------------------
