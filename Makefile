@@ -25,19 +25,12 @@ demo: $(VENV)/.runtime
 experiments: setup
 	$(PY) -m sitl.lab.experiments all --out $(OUT)
 
-# everything but the real autopilots six at a time on two cores (two workers kept the cores only 44 %
-# busy: sleeping real-time flights, process starts; lockstep flights do not mind a busy host; six
-# finished in 321 s where four took 360, docs/benchmarks.md), then the real-autopilot tier: PX4's
-# tests one at a time (two at a time, two fresh-clone runs in two each failed a PX4 flight: a client
-# on the wall clock or PX4's estimator starved), then ArduPilot's three at a time, each test booting
-# its autopilot on instances of its worker's own (tests/helpers/firmware.py), a module whose tests
-# share one boot on one worker (loadgroup). Skipped with the reason where no build is found
-# (docs/autopilots.md). The slowest tests named
+# everything but the real autopilots (six at a time, niced: lockstep flights do not mind a busy
+# host) and, beside it at normal priority, the real-autopilot tier (PX4's tests one at a time, then
+# ArduPilot's three at a time: firmware on the wall clock must get the CPU): tests/run_tiers.sh says
+# why and how. Skipped with the reason where no build is found (docs/autopilots.md)
 test: setup lint
-	$(PY) -m pytest -q -n 6 -m "not firmware" --durations=25
-	$(PY) -m pytest -q -m "firmware and not ardupilot" --durations=10; px4=$$?; \
-	$(PY) -m pytest -q -n 3 --dist loadgroup -m "firmware and ardupilot" --durations=10; ardupilot=$$?; \
-	test $$px4 -eq 0 -a $$ardupilot -eq 0
+	PY=$(PY) bash tests/run_tiers.sh
 
 # the long fuzz run, new examples every run (CI runs the same tests with 150 fixed examples each,
 # seeded from each test's name); FUZZ_EXAMPLES to change it; a failure prints its reproduce blob
