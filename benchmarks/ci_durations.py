@@ -5,8 +5,9 @@
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
 ``make test`` prints three pytest summaries in order: everything but the firmware, then PX4's
-tier, then ArduPilot's (docs/autopilots.md). This prints each one's count and wall time and,
-where the log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run.
+tier, then ArduPilot's, which ran one after the other beside the first (tests/run_tiers.sh). This
+prints each one's count and wall time and, where the log has it (bash's ``time`` or a line
+``EXIT n after T s``), the whole run.
 ``--readme`` replaces the sentence between README's ``<!-- ci-durations -->`` markers with them,
 so that no duration in the README is typed by hand.
 """
@@ -42,8 +43,8 @@ def sentence(runs: list[tuple[int, int, float]], total: float, commit: str, date
     (_, main, main_s), (_, px4, px4_s), (_, ap, ap_s) = runs
     return (f"From a fresh clone with both builds found (no pip cache, no compiled-kernel cache; "
             f"`.ci/run`, {date}, commit {commit}): {total / 60:.1f} minutes in all ({total:.0f} s) — install "
-            f"and lint, {main} tests in {main_s:.0f} s, then {px4} PX4 tests in {px4_s:.0f} s, then {ap} "
-            f"ArduPilot tests in {ap_s:.0f} s.")
+            f"and lint, then {main} tests in {main_s:.0f} s and beside them {px4} PX4 tests in {px4_s:.0f} s, "
+            f"then {ap} ArduPilot tests in {ap_s:.0f} s.")
 
 
 def write_readme(readme: Path, text: str) -> None:
@@ -67,8 +68,8 @@ def main(argv: list[str]) -> int:
     for name, (failed, passed, seconds) in zip(names, runs):
         print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")
     if len(runs) == 3:
-        print(f"the two tiers: {runs[1][2] + runs[2][2]:.0f} s one after the other, "
-              f"{max(runs[1][2], runs[2][2]):.0f} s if side by side")
+        print(f"the real-autopilot tier: {runs[1][2] + runs[2][2]:.0f} s (PX4's, then ArduPilot's), "
+              f"beside the {runs[0][2]:.0f} s of everything else")
     if total is not None:
         print(f"in all: {total:.0f} s ({total / 60:.1f} minutes)")
     if args.readme is not None:

@@ -41,7 +41,7 @@ def test_the_readme_sentence_is_replaced_between_its_markers_and_nothing_else(tm
     assert text.startswith("before\n<!-- ci-durations -->\n") and text.endswith("<!-- /ci-durations -->\nafter\n")
     assert "old words" not in text
     assert ("`.ci/run`, 2026-12-05, commit abc1234): 19.7 minutes in all (1181 s) — install and lint, "
-            "889 tests in 363 s, then 29 PX4 tests in 383 s, then 21 ArduPilot tests in 400 s.") in text
+            "then 889 tests in 363 s and beside them 29 PX4 tests in 383 s, then 21 ArduPilot tests in 400 s.") in text
 
 
 def test_a_failed_or_partial_run_is_not_written(tmp_path):

@@ -176,6 +176,11 @@ def test_px4_takes_offboard_on_one_fresh_setpoint_and_rejects_it_on_a_stale_one(
     assert command(m, px4, 400, 1) == 0
     level = [1.0, 0.0, 0.0, 0.0]
     m.mav.set_attitude_target_send(0, px4.sysid, 1, RATES_IGNORED, level, 0, 0, 0, 0.0)
+    # the vehicle answers in order, so once it answers this it has read the setpoint: the clock starts
+    # there, not when it was sent (on a busy host the bundled vehicle at 4x read one 0.5 s of its time
+    # late, and the setpoint was still fresh when it should have been stale)
+    m.mav.param_request_read_send(px4.sysid, 1, b"COM_OF_LOSS_T", -1)
+    wait(m, "PARAM_VALUE", lambda p: p.param_id == "COM_OF_LOSS_T")
     _vehicle_seconds_pass(m, loss_t + 0.5)
     assert _mode_command_once(m, px4, "OFFBOARD") == mavutil.mavlink.MAV_RESULT_TEMPORARILY_REJECTED
     m.mav.set_attitude_target_send(0, px4.sysid, 1, RATES_IGNORED, level, 0, 0, 0, 0.0)
