@@ -26,9 +26,9 @@ experiments: setup
 	$(PY) -m sitl.lab.experiments all --out $(OUT)
 
 # everything but the real autopilots (six at a time, niced: lockstep flights do not mind a busy
-# host) and, beside it at normal priority, the real-autopilot tier (PX4's tests one at a time, then
-# ArduPilot's three at a time: firmware on the wall clock must get the CPU): tests/run_tiers.sh says
-# why and how. Skipped with the reason where no build is found (docs/autopilots.md)
+# host) with PX4's tests beside it at normal priority (one at a time: firmware on the wall clock must
+# get the CPU), then ArduPilot's three at a time: tests/run_tiers.sh says why and how. Skipped with
+# the reason where no build is found (docs/autopilots.md)
 test: setup lint
 	PY=$(PY) bash tests/run_tiers.sh
 
