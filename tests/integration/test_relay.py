@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from sitl.netem.relay import SO_TIMESTAMPNS, Impairment, kernel_arrival, main
+from sitl.netem.relay import SO_TIMESTAMPNS, Impairment, clock_pair, kernel_arrival, main
 
 
 class Ends:
@@ -49,7 +49,7 @@ class Ends:
             except TimeoutError:
                 return got
             i, sent = struct.unpack("<Id", data)
-            got.append((i, (kernel_arrival(anc, time.monotonic()) - sent) * 1000))
+            got.append((i, (kernel_arrival(anc) - sent) * 1000))
 
     def close(self) -> None:
         self.client.close()
@@ -110,6 +110,22 @@ def test_delay_and_jitter_and_the_reordering_jitter_causes(ends):
     assert abs(statistics.mean(delays) - 20.0) < 3.0 + late["p99"]
     order = [i for i, _ in got]
     assert order != sorted(order)
+
+
+def test_the_clocks_are_read_as_of_one_instant_even_when_a_read_is_descheduled():
+    """Kernel stamps (wall clock) map onto the monotonic clock through one reading of both. A
+    process descheduled between the two reads for 0.66 ms mapped every stamp 0.66 ms early, and the
+    relay delivered that much early (a 10 ms minimum delay measured 9.34 ms in a fresh-clone CI):
+    the wall clock is read between two monotonic reads, and a bracket wider than 20 us is read
+    again, the tightest kept. Here the first bracket is split by 0.66 ms, the second is not (the
+    wall clock runs 1000 s ahead of the monotonic one): the mapping is the second's, exact."""
+    monotonic = iter([10.0, 10.00066, 10.001, 10.001005]).__next__
+    wall = iter([1010.0, 1010.001002]).__next__
+    now, wall_now = clock_pair(monotonic=monotonic, wall_clock=wall)
+    assert abs(wall_now - now - 1000.0) < 5e-6, (now, wall_now)
+    split = iter([10.0, 10.00066] * 5).__next__  # never tight: the tightest of the tries is kept
+    now, wall_now = clock_pair(monotonic=split, wall_clock=iter([1010.00066] * 5).__next__)
+    assert abs(wall_now - now - 1000.0) < 0.00034, (now, wall_now)  # the bracket's midpoint, not its start
 
 
 def test_duplicates_and_explicit_reordering(ends):
