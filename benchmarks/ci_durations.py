@@ -4,10 +4,10 @@
     python benchmarks/ci_durations.py ci.log
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
-``make test`` prints three pytest summaries in order: everything but the firmware, then PX4's
-tier, then ArduPilot's, which ran one after the other beside the first (tests/run_tiers.sh). This
-prints each one's count and wall time and, where the log has it (bash's ``time`` or a line
-``EXIT n after T s``), the whole run.
+``make test`` prints four pytest summaries in order (tests/run_tiers.sh): everything but the
+firmware; PX4's tier, which ran beside it; PX4's MAVSDK examples, then ArduPilot's tier, each after
+the two. This prints each one's count and wall time and, where the log has it (bash's ``time`` or
+a line ``EXIT n after T s``), the whole run.
 ``--readme`` replaces the sentence between README's ``<!-- ci-durations -->`` markers with them,
 so that no duration in the README is typed by hand.
 """
@@ -39,12 +39,13 @@ def durations(text: str) -> tuple[list[tuple[int, int, float]], float | None]:
 
 
 def sentence(runs: list[tuple[int, int, float]], total: float, commit: str, date: str) -> str:
-    """README's words for one fresh-clone run (three summaries, the whole run)."""
-    (_, main, main_s), (_, px4, px4_s), (_, ap, ap_s) = runs
+    """README's words for one fresh-clone run (four summaries, the whole run)."""
+    (_, main, main_s), (_, px4, px4_s), (_, examples, examples_s), (_, ap, ap_s) = runs
     return (f"From a fresh clone with both builds found (no pip cache, no compiled-kernel cache; "
             f"`.ci/run`, {date}, commit {commit}): {total / 60:.1f} minutes in all ({total:.0f} s) — install "
             f"and lint, then {main} tests in {main_s:.0f} s and beside them {px4} PX4 tests in {px4_s:.0f} s, "
-            f"then {ap} ArduPilot tests in {ap_s:.0f} s.")
+            f"then PX4's {examples} MAVSDK examples in {examples_s:.0f} s, then {ap} ArduPilot tests in "
+            f"{ap_s:.0f} s.")
 
 
 def write_readme(readme: Path, text: str) -> None:
@@ -64,17 +65,16 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--date", default=time.strftime("%Y-%m-%d", time.gmtime()))
     args = ap.parse_args(argv)
     runs, total = durations(args.log.read_text(errors="replace"))
-    names = ["everything but the firmware", "PX4's tier", "ArduPilot's tier"]
+    names = ["everything but the firmware", "PX4's tier beside it", "PX4's MAVSDK examples", "ArduPilot's tier"]
     for name, (failed, passed, seconds) in zip(names, runs):
         print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")
-    if len(runs) == 3:
-        print(f"the real-autopilot tier: {runs[1][2] + runs[2][2]:.0f} s (PX4's, then ArduPilot's), "
-              f"beside the {runs[0][2]:.0f} s of everything else")
+    if len(runs) == 4:
+        print(f"one after the other: {max(runs[0][2], runs[1][2]) + runs[2][2] + runs[3][2]:.0f} s of pytest")
     if total is not None:
         print(f"in all: {total:.0f} s ({total / 60:.1f} minutes)")
     if args.readme is not None:
-        if len(runs) != 3 or total is None or any(failed for failed, _, _ in runs):
-            raise SystemExit("--readme: the log must hold three passing summaries and the whole run's time")
+        if len(runs) != 4 or total is None or any(failed for failed, _, _ in runs):
+            raise SystemExit("--readme: the log must hold four passing summaries and the whole run's time")
         write_readme(args.readme, sentence(runs, total, args.commit, args.date))
         print(f"written to {args.readme}")
     return 0

@@ -37,9 +37,11 @@ from helpers.processes import ROOT, child_env, free_udp_port
 
 pytestmark = [pytest.mark.integration, pytest.mark.contract]
 
-SPEED = {"bundled": 4.0, "firmware": 2.0}
+SPEED = {"bundled": 4.0, "firmware": 4.0}
 """vehicle seconds per wall second: MAVSDK resends the last setpoint at 20 Hz of wall time, 5-10 Hz of
-the vehicle's, well inside the offboard loss timeout (1 s). PX4 SIH flies them at 2x"""
+the vehicle's, well inside the offboard loss timeout (1 s). On PX4 SIH they run alone
+(tests/run_tiers.sh): the examples' client reads telemetry without stamps, and beside the rest of
+the suite one read a velocity 1.3 m/s off the one PX4 had reached by the end of its step"""
 
 
 @dataclass(frozen=True)
@@ -304,12 +306,13 @@ def test_offboard_velocity_ned_example_flies_each_velocity_and_heading(vehicle):
     assert notes["started"]
     names = ("up", "north, face east", "south, face west", "west, face east", "east", "face south", "down, face north")
     model = vehicle.loop.follow([(notes[name][2], notes[name][4]) for name in names])
+    heights = {name: round(notes[name][5], 2) for name in names}  # the estimate's, at each step's end [m]
     for name, modelled in zip(names, model):
         vel, yaw, want, want_yaw, _, height_m = notes[name]
         if name == "down, face north" and height_m < 1.0:  # back on the ground: it climbed less than it sinks
             assert vel[2] < 1.2, (name, vel, height_m)
             continue
-        assert max(abs(a - b) for a, b in zip(vel, modelled)) < 0.35, (name, vel, want, modelled)
+        assert max(abs(a - b) for a, b in zip(vel, modelled)) < 0.35, (name, vel, want, modelled, heights)
         assert abs(_wrap(yaw - want_yaw)) < 10.0, (name, yaw, want_yaw)
     mode, armed, speed, down_m = notes["after_stop"]
     # as after offboard_attitude, but a last step that ended on the ground may end disarmed there: PX4's
