@@ -25,11 +25,9 @@ demo: $(VENV)/.runtime
 experiments: setup
 	$(PY) -m sitl.lab.experiments all --out $(OUT)
 
-# everything but the real autopilots (six at a time, niced: lockstep flights do not mind a busy
-# host) with PX4's tests beside it at normal priority (one at a time: firmware on the wall clock must
-# get the CPU), then PX4's MAVSDK examples alone, then ArduPilot's three at a time:
-# tests/run_tiers.sh says why and how. Skipped with the reason where no build is found
-# (docs/autopilots.md)
+# everything but the real autopilots six at a time, then PX4 SIH's tests two at a time, then PX4 on
+# our plant and MAVSDK's examples one at a time, then ArduPilot's three at a time: tests/run_tiers.sh
+# says why. Skipped with the reason where no build is found (docs/autopilots.md)
 test: setup lint
 	PY=$(PY) bash tests/run_tiers.sh
 

@@ -4,10 +4,10 @@
     python benchmarks/ci_durations.py ci.log
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
-``make test`` prints four pytest summaries in order (tests/run_tiers.sh): everything but the
-firmware; PX4's tier, which ran beside it; PX4's MAVSDK examples, then ArduPilot's tier, each after
-the two. This prints each one's count and wall time and, where the log has it (bash's ``time`` or
-a line ``EXIT n after T s``), the whole run.
+``make test`` prints four pytest summaries in order, one run after the other (tests/run_tiers.sh):
+everything but the firmware; PX4 SIH and its clients, two at a time; PX4 on our plant and MAVSDK's
+examples on SIH, one at a time; ArduPilot's tier. This prints each one's count and wall time and,
+where the log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run.
 ``--readme`` replaces the sentence between README's ``<!-- ci-durations -->`` markers with them,
 so that no duration in the README is typed by hand.
 """
@@ -43,9 +43,9 @@ def sentence(runs: list[tuple[int, int, float]], total: float, commit: str, date
     (_, main, main_s), (_, px4, px4_s), (_, examples, examples_s), (_, ap, ap_s) = runs
     return (f"From a fresh clone with both builds found (no pip cache, no compiled-kernel cache; "
             f"`.ci/run`, {date}, commit {commit}): {total / 60:.1f} minutes in all ({total:.0f} s) — install "
-            f"and lint, then {main} tests in {main_s:.0f} s and beside them {px4} PX4 tests in {px4_s:.0f} s, "
-            f"then PX4's {examples} MAVSDK examples in {examples_s:.0f} s, then {ap} ArduPilot tests in "
-            f"{ap_s:.0f} s.")
+            f"and lint, {main} tests in {main_s:.0f} s, {px4} PX4 tests two at a time in {px4_s:.0f} s, "
+            f"{examples} more (PX4 on our plant, MAVSDK's examples) one at a time in {examples_s:.0f} s, "
+            f"{ap} ArduPilot tests in {ap_s:.0f} s.")
 
 
 def write_readme(readme: Path, text: str) -> None:
@@ -65,11 +65,12 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--date", default=time.strftime("%Y-%m-%d", time.gmtime()))
     args = ap.parse_args(argv)
     runs, total = durations(args.log.read_text(errors="replace"))
-    names = ["everything but the firmware", "PX4's tier beside it", "PX4's MAVSDK examples", "ArduPilot's tier"]
+    names = ["everything but the firmware", "PX4 SIH, two at a time", "PX4 on the plant and the examples",
+             "ArduPilot's tier"]
     for name, (failed, passed, seconds) in zip(names, runs):
         print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")
     if len(runs) == 4:
-        print(f"one after the other: {max(runs[0][2], runs[1][2]) + runs[2][2] + runs[3][2]:.0f} s of pytest")
+        print(f"pytest in all: {sum(r[2] for r in runs):.0f} s")
     if total is not None:
         print(f"in all: {total:.0f} s ({total / 60:.1f} minutes)")
     if args.readme is not None:

@@ -165,6 +165,7 @@ def squares_in_one_boot(px4_build, tmp_path_factory) -> dict[str, dict | str]:  
     return out
 
 
+@pytest.mark.xdist_group("px4 squares")  # one worker flies the boot both read
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_square_in_one_boot_within_px4s_own_figure(squares_in_one_boot, backend, record_property):
     """The companion's square with ``backend`` (its ISM+DO, attitude setpoints only) flies to its end

@@ -39,9 +39,9 @@ pytestmark = [pytest.mark.integration, pytest.mark.contract]
 
 SPEED = {"bundled": 4.0, "firmware": 4.0}
 """vehicle seconds per wall second: MAVSDK resends the last setpoint at 20 Hz of wall time, 5-10 Hz of
-the vehicle's, well inside the offboard loss timeout (1 s). On PX4 SIH they run alone
-(tests/run_tiers.sh): the examples' client reads telemetry without stamps, and beside the rest of
-the suite one read a velocity 1.3 m/s off the one PX4 had reached by the end of its step"""
+the vehicle's, well inside the offboard loss timeout (1 s). On PX4 SIH they run one at a time
+(tests/run_tiers.sh): the examples' client reads telemetry without stamps, and beside other tests
+one read a velocity 1.3 m/s off the one PX4 had reached by the end of its step"""
 
 
 @dataclass(frozen=True)
