@@ -37,11 +37,12 @@ from helpers.processes import ROOT, child_env, free_udp_port
 
 pytestmark = [pytest.mark.integration, pytest.mark.contract]
 
-SPEED = {"bundled": 4.0, "firmware": 4.0}
+SPEED = {"bundled": 4.0, "firmware": 2.0}
 """vehicle seconds per wall second: MAVSDK resends the last setpoint at 20 Hz of wall time, 5-10 Hz of
 the vehicle's, well inside the offboard loss timeout (1 s). On PX4 SIH they run one at a time
 (tests/run_tiers.sh): the examples' client reads telemetry without stamps, and beside other tests
-one read a velocity 1.3 m/s off the one PX4 had reached by the end of its step"""
+one read a velocity 1.3 m/s off the one PX4 had reached by the end of its step. And at 2x: at 4x,
+alone, two of the four ended a hold 0.02 m/s past their bound (0.32 m/s of 0.3, 0.52 m of 0.5)"""
 
 
 @dataclass(frozen=True)
