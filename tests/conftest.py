@@ -25,8 +25,9 @@ def boots_ardupilot(nodeid: str) -> bool:
 def pytest_collection_modifyitems(config, items):
     """Mark every test that runs a real autopilot (the tier in tests/autopilots/ and the contract's
     "firmware" side) `firmware`, and those that boot ArduPilot `ardupilot` as well: `make test` runs
-    PX4's, then ArduPilot's, two at a time (each test process boots its firmware on instances of its
-    own, tests/helpers/firmware.py: two of one number would share ports and lock files)."""
+    PX4's, then ArduPilot's, several at a time where they hold (tests/run_tiers.sh; each test process
+    boots its firmware on instances of its own, tests/helpers/firmware.py: two of one number would
+    share ports and lock files)."""
     for item in items:
         callspec = getattr(item, "callspec", None)
         on_firmware = callspec is not None and "firmware" in callspec.params.values()
