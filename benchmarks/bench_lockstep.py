@@ -26,10 +26,13 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import json
 import os
 import pstats
 import resource
+import signal
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -49,6 +52,12 @@ MISSION = ROOT / "missions" / "waypoints.toml"
 def _cpu(who: int) -> float:
     r = resource.getrusage(who)
     return r.ru_utime + r.ru_stime
+
+
+def _proc_cpu(pid: int) -> float:
+    """CPU seconds process ``pid`` has used so far (Linux: /proc/PID/stat, utime + stime)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 PIECES = {  # piece: (module, class or None, function) timed in place
@@ -110,18 +119,27 @@ def pieces_table(r: dict[str, float], spent: dict[str, list[float]]) -> None:
     print(f"{'all':>8} {'':>12} {1000 * total / sim:13.2f}")
 
 
-def fly_once(out: Path, profile: Path | None) -> dict[str, float]:
-    prefix = ("-m", "cProfile", "-o", str(profile)) if profile else ()
-    vehicle = VehicleProcess("--flavour", "paper", "--lockstep", speedup=1000.0, interpreter_args=prefix)
+def fly_once(out: Path, engine: str, profile: Path | None = None, timed: Path | None = None,
+             baseline: Path | None = None) -> dict[str, float]:
+    """One flight of the mission; ``engine`` the vehicle's (``baseline``: a checkout of another commit
+    flies its own vehicle, whatever engine it has); ``profile``/``timed``: the vehicle under cProfile,
+    or with its pieces timed (benchmarks/timed_vehicle.py), writing to that file."""
+    prefix: tuple[str, ...] = ("-m", "cProfile", "-o", str(profile)) if profile else ()
+    if timed:
+        prefix = (str(ROOT / "benchmarks" / "timed_vehicle.py"), str(timed))
+    args = ("--flavour", "paper", "--lockstep") + (("--engine", engine) if baseline is None else ())
+    env = None if baseline is None else {**os.environ, "PYTHONPATH": str(baseline)}
+    vehicle = VehicleProcess(*args, speedup=1000.0, interpreter_args=prefix, env=env, cwd=baseline)
     child0, self0, w0 = _cpu(resource.RUSAGE_CHILDREN), _cpu(resource.RUSAGE_SELF), time.monotonic()
     try:
         opts = FlightOptions(connect=f"udp://{vehicle.url}", controller="ism_do", out_dir=out,
                              output="attitude_rates", mission_file=MISSION)
         flight = Flight(load_mission(MISSION), opts)
         with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):  # the flight's own report
-            code = asyncio.run(run_flight(flight, plots=False))
+            code, engaged = asyncio.run(_watched(flight, vehicle.pid, timed is not None))
         wall = time.monotonic() - w0
         self_cpu = _cpu(resource.RUSAGE_SELF) - self0
+        flown_cpu, flown_sim = _proc_cpu(vehicle.pid) - engaged[0], flight.link.state.t - engaged[1]
     finally:
         vehicle.stop()
     vehicle_cpu = _cpu(resource.RUSAGE_CHILDREN) - child0
@@ -129,40 +147,114 @@ def fly_once(out: Path, profile: Path | None) -> dict[str, float]:
     if code != 0:
         raise SystemExit(f"the flight ended with exit {code}")
     return {"sim_s": sim, "wall_s": wall, "speedup": sim / wall, "vehicle_cpu_per_sim_s": vehicle_cpu / sim,
-            "companion_cpu_per_sim_s": self_cpu / sim, "capacity": sim / vehicle_cpu}
+            "sustained_cpu_per_sim_s": flown_cpu / flown_sim, "capacity": flown_sim / flown_cpu,
+            "companion_cpu_per_sim_s": self_cpu / sim}
+
+
+async def _watched(flight: Flight, pid: int, mark: bool) -> tuple[int, tuple[float, float]]:
+    """The flight's exit code, and the vehicle's CPU seconds and simulated time when the companion
+    took control (offboard engaged: from there to the end, the vehicle flies the stream in lockstep).
+    ``mark``: SIGUSR1 to the vehicle then and at the end (benchmarks/timed_vehicle.py)."""
+    task = asyncio.create_task(run_flight(flight, plots=False))
+    engaged = None
+    while not task.done():
+        if engaged is None and flight.engaged:
+            engaged = (_proc_cpu(pid), flight.link.state.t)
+            if mark:
+                os.kill(pid, signal.SIGUSR1)
+        await asyncio.sleep(0.02)
+    if mark:
+        os.kill(pid, signal.SIGUSR1)
+    code = task.result()
+    if engaged is None:
+        raise SystemExit("the companion never took control")
+    return code, engaged
+
+
+def vehicle_pieces_table(label: str, path: Path) -> None:
+    """The vehicle's pieces between the two marks: the companion taking control, the flight's end."""
+    a, b = json.loads(path.read_text())["marks"][:2]
+    sim, total = b["sim_s"] - a["sim_s"], b["cpu_s"] - a["cpu_s"]
+    print(f"\n## the vehicle per piece, {label} ({sim:.1f} s simulated under the companion's control; CPU ms per "
+          f"simulated s; share of its CPU)")
+    print(f"{'piece':>10} {'calls/sim s':>12} {'CPU ms/sim s':>13} {'us/call':>8} {'share':>6}")
+    spent = 0.0
+    for p, (cpu_b, n_b) in b["pieces"].items():
+        cpu, n = cpu_b - a["pieces"][p][0], n_b - a["pieces"][p][1]
+        spent += cpu
+        print(f"{p:>10} {n / sim:12.0f} {1000 * cpu / sim:13.2f} {1e6 * cpu / max(n, 1):8.1f} {cpu / total:6.0%}")
+    rest = total - spent
+    print(f"{'rest':>10} {'':>12} {1000 * rest / sim:13.2f} {'':>8} {rest / total:6.0%}   "
+          f"(event loop, pacing, guard, the timers)")
+    print(f"{'all':>10} {'':>12} {1000 * total / sim:13.2f}")
+
+
+@contextlib.contextmanager
+def checkout(rev: str | None) -> Iterator[Path | None]:
+    """A worktree of ``rev`` (removed after), or None."""
+    if rev is None:
+        yield None
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "baseline"
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(path), rev], check=True)
+        try:
+            yield path
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(path)], check=False)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--runs", type=int, default=3, help="flights per vehicle, interleaved")
+    ap.add_argument("--engines", default="compiled,objects", help="the vehicle's engines to fly, side by side")
+    ap.add_argument("--baseline", metavar="REV", help="also fly the vehicle of commit REV (a git worktree)")
     ap.add_argument("--profile", type=int, default=0, metavar="N", help="profile one more flight's vehicle, top N")
-    ap.add_argument("--pieces", action="store_true", help="one more flight with the companion's pieces timed")
+    ap.add_argument("--pieces", action="store_true", help="one more flight per vehicle with its pieces timed, "
+                                                          "and one with the companion's")
     args = ap.parse_args()
+    engines = [e for e in args.engines.split(",") if e]
     print(f"# bench_lockstep  {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())}  nproc {os.cpu_count()}  "
           f"load {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     print(f"# {MISSION.name} against sitl --flavour paper --lockstep, speed-up cap 1000\n")
-    rows = []
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, checkout(args.baseline) as base:
+        vehicles: list[tuple[str, str, Path | None]] = [(f"engine {e}", e, None) for e in engines]
+        if base is not None:
+            vehicles.insert(0, (f"at {args.baseline}", "", base))
+        rows: dict[str, list[dict[str, float]]] = {label: [] for label, _, _ in vehicles}
         for i in range(args.runs):
-            rows.append(fly_once(Path(tmp) / f"run{i}", None))
-        print(f"{'run':>4} {'sim s':>7} {'wall s':>7} {'x real time':>12} {'vehicle CPU/sim s':>18} "
-              f"{'companion CPU/sim s':>20} {'vehicle capacity':>17}")
-        for i, r in enumerate(rows):
-            print(f"{i + 1:>4} {r['sim_s']:7.1f} {r['wall_s']:7.2f} {r['speedup']:12.1f} "
-                  f"{r['vehicle_cpu_per_sim_s']:18.4f} {r['companion_cpu_per_sim_s']:20.4f} {r['capacity']:16.1f}x")
-        med = {k: statistics.median(r[k] for r in rows) for k in rows[0]}
-        print(f"median: {med['speedup']:.1f}x real time; vehicle capacity {med['capacity']:.1f}x; "
-              f"companion {med['companion_cpu_per_sim_s']:.4f} CPU s per simulated s "
-              f"(capacity {1 / med['companion_cpu_per_sim_s']:.1f}x)")
+            for label, engine, b in vehicles:
+                rows[label].append(fly_once(Path(tmp) / f"run{i}{engine}", engine, baseline=b))
+        print(f"{'vehicle':>16} {'run':>4} {'sim s':>6} {'wall s':>7} {'x real time':>12} {'CPU/sim s':>10} "
+              f"{'sustained':>10} {'capacity':>9} {'companion CPU/sim s':>20}")
+        for label, rs in rows.items():
+            for i, r in enumerate(rs):
+                print(f"{label:>16} {i + 1:>4} {r['sim_s']:6.1f} {r['wall_s']:7.2f} {r['speedup']:12.1f} "
+                      f"{r['vehicle_cpu_per_sim_s']:10.4f} {r['sustained_cpu_per_sim_s']:10.4f} "
+                      f"{r['capacity']:8.1f}x {r['companion_cpu_per_sim_s']:20.4f}")
+        print("\nmedians (CPU/sim s: the whole vehicle process, its boot and exit included; sustained: from the "
+              "companion taking control to the flight's end; capacity: 1 / sustained)")
+        for label, rs in rows.items():
+            med = {k: statistics.median(r[k] for r in rs) for k in rs[0]}
+            print(f"{label:>16}: {med['speedup']:.1f}x real time; vehicle {med['vehicle_cpu_per_sim_s']:.4f} CPU s "
+                  f"per simulated s, sustained {med['sustained_cpu_per_sim_s']:.4f}, capacity {med['capacity']:.1f}x; "
+                  f"companion {med['companion_cpu_per_sim_s']:.4f} (capacity "
+                  f"{1 / med['companion_cpu_per_sim_s']:.1f}x)")
         if args.pieces:
+            for label, engine, b in vehicles:
+                if b is not None:
+                    continue  # an older vehicle may lack what the timers wrap
+                out = Path(tmp) / f"pieces-{engine}.json"
+                fly_once(Path(tmp) / f"pieces{engine}", engine, timed=out)
+                vehicle_pieces_table(label, out)
             with timed_pieces() as spent:
-                r = fly_once(Path(tmp) / "pieces", None)
+                r = fly_once(Path(tmp) / "pieces", engines[0])
             pieces_table(r, spent)
         if args.profile:
             prof = Path(tmp) / "vehicle.prof"
-            r = fly_once(Path(tmp) / "profiled", prof)
-            print(f"\n## the vehicle under cProfile ({r['sim_s']:.1f} s simulated, {r['speedup']:.1f}x with the "
-                  f"profiler's overhead), top {args.profile} by own time")
+            r = fly_once(Path(tmp) / "profiled", engines[0], profile=prof)
+            print(f"\n## the vehicle ({engines[0]}) under cProfile ({r['sim_s']:.1f} s simulated, {r['speedup']:.1f}x "
+                  f"with the profiler's overhead), top {args.profile} by own time")
             pstats.Stats(str(prof)).sort_stats("tottime").print_stats(args.profile)
     print(f"(load at the end {' '.join(f'{x:.2f}' for x in os.getloadavg())})")
 

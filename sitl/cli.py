@@ -29,6 +29,7 @@ from companion.control.attitude import ATTITUDE_CONTROLLERS
 from companion.mavlink.signing import SigningError
 from companion.mavlink.signing_options import add_signing_options
 
+from .plant.engine import ENGINES
 from .autopilot.cli import (PX4_LISTEN, PX4_PEER, _fail, _finite, _int_in, _Parser, build, parse_address, parse_origin,
                             parse_param, ports, serve)
 from .firmware.cli import add_firmware_options
@@ -61,6 +62,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="set a parameter at start, e.g. SIM_WIND_N=3 SIM_TURB_SIGMA=0.6 SIM_FORCE_X=6 "
                          "SIM_MASS_FAC=1.3 (repeatable; the full list: PARAM_REQUEST_LIST or docs/sitl.md)")
     ap.add_argument("--seed", type=_int_in(0, 2**32 - 1), default=1)
+    ap.add_argument("--engine", choices=ENGINES, default=None,
+                    help="what steps the plant between two decisions of the rules: compiled (the lab's kernel; the "
+                         "default where numba is installed, or $SITL_ENGINE) or objects (plain Python)")
     ap.add_argument("--sysid", type=_int_in(1, 255), default=1)
     ap.add_argument("--origin", type=parse_origin, default=GeoOrigin(), help="LAT,LON,ALT of the local origin")
     ap.add_argument("--wait-for-setpoints", type=_finite, default=0.0, metavar="SECONDS",
@@ -114,7 +118,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _firmware(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """``--firmware``: what the bundled autopilot's options mean does not apply."""
     for option, default in (("listen", None), ("peer", None), ("attitude", "ism_do"),
-                            ("flavour", "px4"), ("sysid", 1), ("wait_for_setpoints", 0.0), ("boot_time", 0.0)):
+                            ("flavour", "px4"), ("sysid", 1), ("wait_for_setpoints", 0.0), ("boot_time", 0.0),
+                            ("engine", None)):
         if getattr(args, option) != default:
             ap.error(f"--{option.replace('_', '-')} is the bundled autopilot's: with --firmware the firmware's own "
                      f"ports, attitude loop and rules apply")

@@ -19,6 +19,8 @@ import struct
 from dataclasses import dataclass
 from typing import Any
 
+from .framing import frame
+
 __all__ = ["MSG_ID_EVENT", "Event", "parse_event", "EventCatalogue", "SEVERITY_OF_LEVEL", "EVENT_CRC_EXTRA",
            "encode_event_frame", "catalogue_json", "CATALOGUE_PATH", "CATALOGUE_MAX_BYTES"]
 
@@ -60,14 +62,8 @@ EVENT_CRC_EXTRA = _crc_extra()
 def encode_event_frame(seq: int, sysid: int, compid: int, event_id: int, time_boot_ms: int, sequence: int,
                        severity: int, arguments: bytes = b"") -> bytes:
     """An EVENT as a MAVLink 2 frame (trailing zeros trimmed, as MAVLink 2 does), unsigned."""
-    from pymavlink.generator.mavcrc import x25crc
-
     payload = _HEADER.pack(event_id, time_boot_ms & 0xFFFFFFFF, sequence & 0xFFFF, 0, 0, severity & 0x0F)
-    payload = (payload + arguments[:40].ljust(40, b"\x00")).rstrip(b"\x00") or b"\x00"
-    header = bytes([0xFD, len(payload), 0, 0, seq & 0xFF, sysid, compid]) + MSG_ID_EVENT.to_bytes(3, "little")
-    crc = x25crc(header[1:] + payload)
-    crc.accumulate([EVENT_CRC_EXTRA])
-    return header + payload + crc.crc.to_bytes(2, "little")
+    return frame(MSG_ID_EVENT, EVENT_CRC_EXTRA, payload + arguments[:40].ljust(40, b"\x00"), seq, sysid, compid)
 
 
 def catalogue_json(component_namespace: str, events: dict[int, tuple[str, str]]) -> bytes:

@@ -28,6 +28,7 @@ from typing import NoReturn
 from companion.config import ConfigError
 from companion.mavlink.signing_options import signing_key
 
+from ..plant.engine import default_engine
 from ..plant.scenario import Scenario, load_scenario
 from ..plant.vehicle import SimVehicle
 from .logic import Autopilot, AutopilotParams
@@ -147,6 +148,8 @@ def build(args: argparse.Namespace) -> MavlinkServer:
     # a live vehicle starts on the ground at the origin, whatever the scenario's setpoint says
     vehicle = SimVehicle(scenario, args.attitude, args.seed, (0.0, 0.0, scenario.airframe.ground_z_m), 0.0,
                          hovering=False)
+    if (getattr(args, "engine", None) or default_engine()) == "compiled":
+        vehicle.compile_chunks()
     ap = Autopilot(vehicle, AutopilotParams(paper_inner_loop=args.flavour == "paper",
                                             flavour="ardupilot" if args.flavour == "ardupilot" else "px4"))
     cfg = ServerConfig(listen=args.listen, peers=tuple(args.peer), speedup=args.speedup, sysid=args.sysid,
@@ -183,6 +186,7 @@ async def serve(server: MavlinkServer, duration_s: float | None, quiet: bool) ->
               "terminated": server.ap.terminated, "halted": server.guard.halted,
               "loop_lateness_ms": server.lateness_ms(), "setpoint_age_ms": server.setpoint_age_ms(),
               "longest_wait_ms": round(server.longest_wait_s * 1e3, 1), "pace": server.pace(),
+              "run_cpu": server.run_cpu, "steps": dict(server.ap.vehicle.chunk_counts),
               "peers": server.peers.summary(),
               "peer_table": {"added": server.peers.added, "evicted": server.peers.evicted,
                              "refused": server.peers.refused, "expired": server.peers.expired}}

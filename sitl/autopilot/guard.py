@@ -63,16 +63,17 @@ class StepGuard:
         v = self.ap.vehicle
         return v.plant.state, v.estimator.q, v.mocap.latest, v.imu_sample
 
-    def step(self) -> None:
+    def step(self, steps: int = 1) -> None:
+        """``steps`` plant steps of the world (:func:`world.step`), or of the clock alone once halted."""
         ap = self.ap
         if self.halted is not None:
-            ap.vehicle.t += ap.dt  # the clock runs on; the world stands still, whatever is poked into it
+            ap.vehicle.t += steps * ap.dt  # the clock runs on; the world stands still, whatever is poked into it
             if ap.vehicle.plant.state is not self._frozen:
                 ap.vehicle.plant.state = self._frozen
             ap.stand_still(Sensed.of(ap.vehicle))
             return
         try:
-            world.step(ap)
+            world.step(ap, steps)
         except Exception as exc:  # noqa: BLE001 - anything a step raises is a numerical fault here
             self._fault(f"{type(exc).__name__}: {exc}")
             return
@@ -82,11 +83,13 @@ class StepGuard:
             self._fault("non-finite state")
             return
         self._good = self._snapshot()
-        self._k += 1
-        if self._k % CHECK_EVERY == 0:
-            self._check_control()
+        self._k += steps
+        if self._k >= CHECK_EVERY:
+            self._check_control(self._k * ap.dt)
+            self._k = 0
 
-    def _check_control(self) -> None:
+    def _check_control(self, period: float) -> None:
+        """The leaky timer over the last ``period`` [s]: loss of control held long enough terminates."""
         ap = self.ap
         if not ap.armed or ap.landed:
             self._bad_s = 0.0
@@ -95,7 +98,6 @@ class StepGuard:
         b = _thrust_axis(ap.setpoint.q_d)
         cos = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / math.sqrt(
             (a[0] ** 2 + a[1] ** 2 + a[2] ** 2) * (b[0] ** 2 + b[1] ** 2 + b[2] ** 2))
-        period = CHECK_EVERY * ap.dt
         if cos >= math.cos(LOSS_OF_CONTROL_RAD):
             self._bad_s = max(0.0, self._bad_s - 0.5 * period)
             return

@@ -259,6 +259,11 @@ class Autopilot:
         self.target_yaw = 0.0
         self.setpoint = self._idle_setpoint()
         self._k = 0
+        """plant steps so far"""
+        self._position_due_k = 0
+        """the plant step at which the position loop next runs (every pos_div steps)"""
+        self.step_dt = self.dt
+        """the time the rules' newest decision covers (a chunk of plant steps)"""
         self._land_phase_home = False
         vehicle.motors_on = False
 
@@ -622,22 +627,23 @@ class Autopilot:
 
     # --- stepping ----------------------------------------------------------------------
 
-    def decide(self, sensed: Sensed) -> AttitudeSetpoint:
-        """Before a plant step, on what the vehicle sensed: the failsafes, then the setpoint the
-        onboard attitude loop is to track (the mode's, while armed)."""
+    def decide(self, sensed: Sensed, steps: int = 1) -> AttitudeSetpoint:
+        """Before ``steps`` plant steps, on what the vehicle sensed: the failsafes, then the setpoint
+        the onboard attitude loop is to track through them (the mode's, while armed)."""
         self.sensed = sensed
+        self.step_dt = steps * self.dt
         self._failsafes()
         if self.armed:
             self.setpoint = self._mode_setpoint()
         return self.setpoint
 
-    def observe(self, sensed: Sensed) -> None:
-        """After a plant step, on what the vehicle sensed: landing detection and the time flown."""
+    def observe(self, sensed: Sensed, steps: int = 1) -> None:
+        """After ``steps`` plant steps, on what the vehicle sensed: landing detection and the time flown."""
         self.sensed = sensed
         self._update_landed()
         if self.armed and not self.landed:
-            self.airborne_s += self.dt
-        self._k += 1
+            self.airborne_s += steps * self.dt
+        self._k += steps
 
     def stand_still(self, sensed: Sensed) -> None:
         """A step in which nothing flies (a halted world, :mod:`sitl.autopilot.guard`): the reading
@@ -662,7 +668,7 @@ class Autopilot:
         v = self.sensed
         if self.failsafe != Failsafe.POSITION_LOST and v.position_age_s < 0.05:  # fresh tracking only
             g = self.vehicle.scenario.vehicle.gravity_m_s2
-            self.accel_bias_z_m_s2 = learn_bias(self.accel_bias_z_m_s2, v, g, self.dt)
+            self.accel_bias_z_m_s2 = learn_bias(self.accel_bias_z_m_s2, v, g, self.step_dt)
         if not self.armed or self.landed:
             return
         if v.imu_failed and v.position_age_s > self.POSITION_TIMEOUT_S:
@@ -742,7 +748,8 @@ class Autopilot:
                     sp = AttitudeSetpoint(quat.integrate(sp.q_d, sp.omega_d_rad_s, age), sp.omega_d_rad_s,
                                           sp.thrust_n)
                 sp, self._shaped = guided_target(sp, self._shaped, self.sensed, self.params,
-                                                 self.vehicle.scenario.vehicle, self.guided_climb_rate_m_s, self.dt)
+                                                 self.vehicle.scenario.vehicle, self.guided_climb_rate_m_s,
+                                                 self.step_dt)
                 return sp
             self._shaped = None
             if self._guided_flying:  # GUID_TIMEOUT: level out and keep the altitude; position is not held
@@ -758,8 +765,9 @@ class Autopilot:
             return self._idle_setpoint()
         if self.failsafe == Failsafe.POSITION_LOST:
             return self._blind_descent()
-        if self._k % self.pos_div != 0:
+        if self._k < self._position_due_k:
             return self.setpoint
+        self._position_due_k = (self._k // self.pos_div + 1) * self.pos_div  # the position loop's grid
         if mode == Mode.RTL:
             pos = self.sensed.tracked.pos_ned_m
             if not self._land_phase_home and math.hypot(pos[0] - self.home[0], pos[1] - self.home[1]) < 0.3:
@@ -832,7 +840,7 @@ class Autopilot:
         counts itself down (:mod:`sitl.autopilot.blind`)."""
         m = self.vehicle.scenario.vehicle
         assert self.blind is not None
-        self.blind = d = blind_step(self.blind, self.sensed, self.accel_bias_z_m_s2, m.gravity_m_s2, self.dt)
+        self.blind = d = blind_step(self.blind, self.sensed, self.accel_bias_z_m_s2, m.gravity_m_s2, self.step_dt)
         if counted_down(d):
             self.landed, self.touchdown_time = True, self.t
             self._say(Severity.INFO, "Landed (counted down without position)")
@@ -849,7 +857,7 @@ class Autopilot:
         q_ref = self._rate_q
         if q_ref is None or quat.angle_between(q_ref, q_est) > math.radians(30.0):
             q_ref = q_est
-        self._rate_q = quat.integrate(q_ref, omega_d, self.dt)
+        self._rate_q = quat.integrate(q_ref, omega_d, self.step_dt)
         return self._rate_q
 
     _rate_q: tuple | None = None

@@ -42,6 +42,7 @@ from companion.control import quaternion as quat
 from companion.control.vector import Vec3
 from companion.mavlink import ftp
 from companion.mavlink.events import CATALOGUE_PATH, encode_event_frame
+from companion.mavlink.framing import pack_message
 from companion.mavlink.signing import VEHICLE_ACCEPTS_UNSIGNED, SignatureCheck, enable_signing, is_signed
 from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
@@ -235,13 +236,19 @@ class MavlinkServer:
         """The frame, numbered in ``peer``'s own sequence (a client that is no peer: the vehicle's
         shared one). ``pack`` alone does not advance the number; a receiver uses it to see loss and
         to tell two senders apart, so each client sees an unbroken count, whatever the others get."""
+        mav = self.mav
         if peer is None:
-            buf = msg.pack(self.mav)
-            self.mav.seq = (self.mav.seq + 1) % 256
+            buf = msg.pack(mav) if mav.signing.sign_outgoing else pack_message(msg, mav.seq, mav.srcSystem,
+                                                                                 mav.srcComponent)
+            mav.seq = (mav.seq + 1) % 256
             return buf
-        shared, self.mav.seq = self.mav.seq, peer.seq
-        buf = msg.pack(self.mav)
-        peer.seq, self.mav.seq = (peer.seq + 1) % 256, shared
+        if mav.signing.sign_outgoing:  # the signature needs pymavlink's link state
+            shared, mav.seq = mav.seq, peer.seq
+            buf = msg.pack(mav)
+            mav.seq = shared
+        else:
+            buf = pack_message(msg, peer.seq, mav.srcSystem, mav.srcComponent)
+        peer.seq = (peer.seq + 1) % 256
         return buf
 
     def _deliver(self, to: Iterable[Peer | Address], payload: mavlink.MAVLink_message | bytes,
@@ -820,6 +827,7 @@ class MavlinkServer:
             await self.start()
         ap, pacing = self.ap, self.pacing
         pacing.start(time.monotonic(), ap.t)
+        cpu0, t0 = time.process_time(), ap.t
         last_expire = pacing.run_wall0
         try:
             while not stop.is_set():
@@ -841,11 +849,13 @@ class MavlinkServer:
                 step = pacing.plan(now, ap.t, ap.follows_stream)
                 steps = 0
                 while ap.t + 0.5 * ap.dt <= step.target_t:
-                    self.step()
-                    steps += 1
+                    n = self.chunk_steps(step.target_t)
+                    self.step(n)
                     if pacing.late(ap.t, ap.follows_stream):
                         break  # catching up, too: never more than the wait ahead of the companion
-                    if steps % 50 == 0:
+                    steps += n
+                    if steps >= 50:
+                        steps = 0
                         await asyncio.sleep(0)  # let datagrams in during long catch-ups
                 if self.ap.messages:
                     self._drain_messages()
@@ -855,11 +865,15 @@ class MavlinkServer:
                 await asyncio.sleep(pacing.sleep_s(time.monotonic(), ap.t, step.locked))
         finally:
             self.run_wall_s = time.monotonic() - pacing.run_wall0
+            self.run_cpu = {"cpu_s": round(time.process_time() - cpu0, 3), "sim_s": round(ap.t - t0, 3)}
             if self.transport is not None:
                 self.transport.close()
                 self.transport = None
 
     run_wall_s: float | None = None
+    run_cpu: dict[str, float] | None = None
+    """the process's CPU seconds while :meth:`run` ran, and the simulated seconds it flew, once it has
+    returned (the vehicle's sustained cost, its boot left out: benchmarks/bench_lockstep.py)"""
     """wall seconds :meth:`run` lasted, once it has returned"""
 
     @property
@@ -870,10 +884,25 @@ class MavlinkServer:
         """How the world kept its speed (:meth:`WorldPacing.report`)."""
         return self.pacing.report(time.monotonic(), self.ap.t, self.run_wall_s)
 
-    def step(self) -> None:
-        """One plant step and the telemetry due; whatever goes wrong, the loop goes on (a fault in
-        the step is the guard's; one in building telemetry is counted)."""
-        self.guard.step()
+    def chunk_steps(self, target_t: float) -> int:
+        """How many plant steps the next :meth:`step` takes: up to ``target_t`` and at most the position
+        loop's period (the rules run at least at that rate), one at least. A stream due within it goes
+        at its end, a little late, as an autopilot's streams go on the loop that serves them; one
+        streamed faster than the rules run ends the chunk where it is due, so it keeps its rate."""
+        ap = self.ap
+        n = min(ap.pos_div, int(round((target_t - ap.t) / ap.dt)))
+        due = self._next_due
+        if self.transport is not None and due < ap.t + n * ap.dt - 1e-9:
+            fastest = min((min(p.intervals.values(), default=math.inf) for p in self.peers), default=math.inf)
+            if fastest < ap.pos_div * ap.dt - 1e-9:
+                n = min(n, int(math.ceil((due - ap.t) / ap.dt - 1e-6)))
+        return max(n, 1)
+
+    def step(self, steps: int = 1) -> None:
+        """``steps`` plant steps under one decision of the rules, then the telemetry due; whatever
+        goes wrong, the loop goes on (a fault in the steps is the guard's; one in building telemetry
+        is counted)."""
+        self.guard.step(steps)
         try:
             self._telemetry_tick()
             if self.ap.messages:

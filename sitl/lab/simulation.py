@@ -22,7 +22,6 @@ equally distributed numbers (the kernel's counter-based streams,
 from __future__ import annotations
 
 import gzip
-import os
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -31,29 +30,15 @@ from numpy.typing import NDArray
 
 from companion.control import quaternion as quat
 from companion.control.outer_loop import AttitudeSetpoint, PositionLoop, PositionMeasurement
-from companion.control.jit import numba_available
 from companion.control.trajectory import PositionReference, ReferenceFilter
 
 from ..plant import kernel
 from ..plant.kernel import LOG_COLUMNS
 from ..plant.scenario import Scenario
+from ..plant.engine import ENGINES, default_engine
 from ..plant.vehicle import SimVehicle
 
 __all__ = ["LOG_COLUMNS", "ENGINES", "FlightLog", "Simulation", "default_engine", "simulate", "simulate_compiled"]
-
-ENGINES = ("compiled", "objects")
-
-
-def default_engine() -> str:
-    """``$SITL_ENGINE`` if set, else ``compiled`` when numba is installed and compiles
-    (``NUMBA_DISABLE_JIT`` unset: the kernel run interpreted takes ~2.7x the objects' time, as
-    in the mutation runs), else ``objects``."""
-    jit = numba_available() and os.environ.get("NUMBA_DISABLE_JIT", "0") in ("", "0")
-    name = os.environ.get("SITL_ENGINE") or ("compiled" if jit else "objects")
-    if name not in ENGINES:
-        raise ValueError(f"SITL_ENGINE={name!r}: expected one of {ENGINES}")
-    return name
-
 
 @dataclass
 class FlightLog:

@@ -7,8 +7,9 @@ compiles anew in every process (seconds); a float64 array of one row per vehicle
 ``pack(value) -> list[float]`` in Python and ``unpack(row, a0, a1, ...)`` (jitable) rebuilding the
 tuple, with integers and booleans restored exactly (float64 holds every integer below 2^53) and
 the array fields given as arguments, in the order ``arrays(value)`` lists them (arrays are shared by
-the whole batch). The arrays travel as plain arguments, not inside a tuple, because numba's
-parallel loops cannot take a tuple holding arrays into the loop body.
+the whole batch); ``write(row, value)`` (jitable) is ``pack`` inside compiled code. The arrays
+travel as plain arguments, not inside a tuple, because numba's parallel loops cannot take a tuple
+holding arrays into the loop body.
 
 For a batch flown in lanes (:mod:`.lanes`, W vehicles per register) the same rows, transposed to
 columns (``cols[j, i]`` the j-th number of vehicle i), give ``unpack_lanes(cols, i0, a0, ...)``:
@@ -41,6 +42,8 @@ class Codec(NamedTuple):
     """``(cols, i0, a0, ...)``: the value of W vehicles (see the module docstring)"""
     uniform: tuple[int, ...]
     """the columns ``unpack_lanes`` reads as the batch's (one value for all vehicles)"""
+    write: Callable[[Any, Any], None]
+    """``(row, value)`` (jitable): ``pack`` inside compiled code, into a row that exists (arrays left out)"""
 
 
 _CACHE: dict[tuple[Any, ...], Codec] = {}
@@ -75,14 +78,17 @@ def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tup
     def below(path: str, paths: tuple[str, ...]) -> bool:
         return any(path == p or path.startswith(p + ".") for p in paths)
 
-    def build(s: Any, path: str) -> tuple[str, str]:
-        """(row expression, lanes expression) of the field at ``path``."""
+    writes: list[str] = []
+
+    def build(s: Any, path: str, access: str = "v") -> tuple[str, str]:
+        """(row expression, lanes expression) of the field at ``path`` (``access``: how ``write`` reads it)."""
         if s == "array":
             n_arrays[0] += 1
             return f"a{n_arrays[0] - 1}", f"a{n_arrays[0] - 1}"
         if s in ("bool", "int", "float"):
             j = index[0]
             index[0] += 1
+            writes.append(f"    row[{j}] = {'1.0 if ' + access + ' else 0.0' if s == 'bool' else access}\n")
             one = {"bool": f"(row[{j}] != 0.0)", "int": f"int(row[{j}])", "float": f"row[{j}]"}[s]
             if s == "float" and below(path, per_vehicle):
                 return one, f"load(cols, {j}, i0)"
@@ -92,7 +98,8 @@ def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tup
             return one, one.replace(f"row[{j}]", f"cols[{j}, i0]")
         cls, items = s
         fields = getattr(cls, "_fields", None)
-        parts = [build(item, f"{path}.{fields[i] if fields else i}".lstrip("."))
+        parts = [build(item, f"{path}.{fields[i] if fields else i}".lstrip("."),
+                       f"{access}.{fields[i]}" if fields else f"{access}[{i}]")
                  for i, item in enumerate(items)]
         if cls is tuple:
             return tuple("(" + ", ".join(p[k] for p in parts) + ("," if len(parts) == 1 else "") + ")"
@@ -108,13 +115,15 @@ def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tup
     # not meet under one name in a process that loads both from the disk cache
     tag = hashlib.sha256(repr(key).encode()).hexdigest()[:12]
     src = (f"def unpack_{tag}(row{params}):\n    return {expr}\n\n"
-           f"def unpack_lanes_{tag}(cols, i0{params}):\n    return {lanes_expr}\n")
+           f"def unpack_lanes_{tag}(cols, i0{params}):\n    return {lanes_expr}\n\n"
+           f"def write_{tag}(row, v):\n{''.join(writes) or '    pass' + chr(10)}")
     from .lanes import load, load_int
 
     scope: dict[str, Any] = dict(names, load=load, load_int=load_int)
     exec(compile(src, f"<codec of {type(example).__name__}>", "exec"), scope)  # noqa: S102
     unpack = jitable(scope[f"unpack_{tag}"])
     unpack_lanes = jitable(scope[f"unpack_lanes_{tag}"])
+    write = jitable(scope[f"write_{tag}"])
 
     def pack(value: Any) -> list[float]:
         out: list[float] = []
@@ -144,6 +153,6 @@ def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tup
         walk(value)
         return tuple(out)
 
-    c = Codec(index[0], pack, unpack, arrays, unpack_lanes, tuple(uniform))
+    c = Codec(index[0], pack, unpack, arrays, unpack_lanes, tuple(uniform), write)
     _CACHE[key] = c
     return c

@@ -8,6 +8,7 @@ simulator and the MAVLink vehicle both step this object, so the wiring exists on
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Sequence
 
 import numpy as np
@@ -78,6 +79,18 @@ class SimVehicle:
         """injected sensor faults and the firmware's IMU check (the live vehicle: enable_fault_checks)"""
         self.imu_monitor: ImuMonitor | None = None
         self.mocap_rates = MocapRates()
+        self.steps = 0
+        """plant steps so far (the counter of the compiled chunks' noise draws)"""
+        self.mocap_taken = 0
+        """tracking samples the compiled chunks took (the counter of their tracking noise)"""
+        self.compiled_chunks = False
+        """:meth:`step_many` on the compiled kernel where it fits (:meth:`compile_chunks`)"""
+        self.chunk_counts = {"compiled": 0, "objects": 0, "refused": 0}
+        """plant steps taken by each path; chunks the compiled call refused (unexpected types)"""
+        self._chunk_key: tuple = ()
+        self._chunk_const: tuple = ()
+        self._row: np.ndarray | None = None
+        self._row_mark: tuple = ()
 
     def enable_fault_checks(self, monitor: bool = True) -> None:
         """Accept injected faults and (``monitor``) check every IMU sample as the bundled firmware
@@ -142,6 +155,7 @@ class SimVehicle:
 
     def step(self, setpoint: AttitudeSetpoint) -> None:
         """Advance one plant step with the firmware tracking ``setpoint`` (motors on)."""
+        self.steps += 1
         est = self.estimator
         if self.imu_monitor is not None and self.imu_monitor.failed:
             self.omega_est = self.mocap_rates.omega_rad_s  # no gyro: rates from the tracking system
@@ -158,6 +172,71 @@ class SimVehicle:
                 self.mocap_rates.update(tracked.time_s, tracked.q)
             else:
                 est.correct(tracked.q)
+
+    def compile_chunks(self) -> bool:
+        """Step :meth:`step_many`'s chunks on the compiled kernel (:mod:`sitl.plant.chunk`) from now
+        on; False (and the objects step on) where numba is not installed."""
+        from companion.control.jit import numba_available
+
+        from . import chunk
+
+        if self.batch or not numba_available():
+            return False
+        chunk.warm_up(self)
+        chunk.advance_compiled.disable_compile()  # a call of unforeseen types falls back, never compiles mid-flight
+        self.compiled_chunks = True
+        return True
+
+    def step_many(self, setpoint: AttitudeSetpoint, steps: int) -> None:
+        """Advance ``steps`` plant steps tracking one ``setpoint``: in compiled chunks where they fit
+        (:meth:`compile_chunks`), else (and for the steps a chunk leaves) one by one."""
+        while steps > 0:
+            if self.compiled_chunks:
+                done = self._compiled_chunk(setpoint, steps)
+                steps -= done
+                if steps == 0:
+                    return
+            self.step(setpoint)
+            self.chunk_counts["objects"] += 1
+            steps -= 1
+
+    def _compiled_chunk(self, setpoint: AttitudeSetpoint, steps: int) -> int:
+        """Up to ``steps`` plant steps on the compiled kernel (:mod:`.chunk`); how many it took. The
+        state stays in a row of numbers between chunks while nothing else changed the objects."""
+        from . import chunk
+
+        if not chunk.fits(self, steps):
+            return 0
+        key = (self.scenario, self.plant.vehicle, self.plant.airframe, self.wind, self.forces, self.torques,
+               self.onboard, self.onboard.controller.const(self.dt), self.estimator.gains, self.imu)
+        if len(key) != len(self._chunk_key) or any(a is not b for a, b in zip(key, self._chunk_key)):
+            self._chunk_key, self._chunk_const = key, chunk.const_rows(chunk.const_of(self))
+        row = self._row
+        if row is None or self._row_mark != self._mark():
+            self._row = row = chunk.state_row(chunk.state_of(self), row)
+        else:  # the position loop read the accelerometer's mean since, and restarted it
+            chunk.write_specific_force_sum(row, self._sf_sum, self._sf_count)
+        mon = self.imu_monitor
+        limits = (mon.max_gyro_rad_s, mon.max_accel_m_s2) if mon is not None else (math.inf, math.inf)
+        try:
+            done = chunk.advance_compiled(*self._chunk_const, row, setpoint, self.motors_on, self.extra_force_ned_n,
+                                          self.extra_torque_nm, steps, *limits)
+        except TypeError:  # a value of a type the kernel was not compiled for: the objects step
+            self.chunk_counts["refused"] += 1
+            return 0
+        if done:
+            chunk.put_back(self, chunk.state_from(row.tolist()))
+            self.chunk_counts["compiled"] += done
+        self._row_mark = self._mark()
+        return done
+
+    def _mark(self) -> tuple:
+        """What the objects hold, by identity: a changed one (a step of the objects, a fault, a guard
+        restoring the world) means the row of :meth:`_compiled_chunk` is no longer the vehicle's state."""
+        m, o, e = self.mocap, self.onboard, self.estimator
+        return (self.steps, self.t, self.plant.state, self.wrench, self.wind, self.wind_ned, self.imu_sample,
+                self.omega_est, m.latest, m._next_t, len(m._pending), self.mocap_taken, e.q, e.gyro_bias, o,
+                o.controller.state, o.torque_applied_nm, o.rotor_cmd_rad_s)
 
     def advance(self, rotor_cmd_rad_s: tuple[Real, Real, Real, Real]) -> MocapSample | None:
         """One plant step with the rotors commanded to ``rotor_cmd_rad_s``: wind and external
