@@ -5,7 +5,7 @@
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
 ``make test`` prints four pytest summaries in order, one run after the other (tests/run_tiers.sh):
-everything but the firmware; PX4 SIH and its clients, two at a time; PX4 on our plant and MAVSDK's
+everything but the firmware; PX4 SIH and its clients, one at a time; PX4 on our plant and MAVSDK's
 examples on SIH, one at a time; ArduPilot's tier. This prints each one's count and wall time and,
 where the log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run.
 ``--readme`` replaces the sentence between README's ``<!-- ci-durations -->`` markers with them,
@@ -43,7 +43,7 @@ def sentence(runs: list[tuple[int, int, float]], total: float, commit: str, date
     (_, main, main_s), (_, px4, px4_s), (_, examples, examples_s), (_, ap, ap_s) = runs
     return (f"From a fresh clone with both builds found (no pip cache, no compiled-kernel cache; "
             f"`.ci/run`, {date}, commit {commit}): {total / 60:.1f} minutes in all ({total:.0f} s) — install "
-            f"and lint, {main} tests in {main_s:.0f} s, {px4} PX4 tests two at a time in {px4_s:.0f} s, "
+            f"and lint, {main} tests in {main_s:.0f} s, {px4} PX4 SIH tests one at a time in {px4_s:.0f} s, "
             f"{examples} more (PX4 on our plant, MAVSDK's examples) one at a time in {examples_s:.0f} s, "
             f"{ap} ArduPilot tests in {ap_s:.0f} s.")
 
@@ -65,7 +65,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--date", default=time.strftime("%Y-%m-%d", time.gmtime()))
     args = ap.parse_args(argv)
     runs, total = durations(args.log.read_text(errors="replace"))
-    names = ["everything but the firmware", "PX4 SIH, two at a time", "PX4 on the plant and the examples",
+    names = ["everything but the firmware", "PX4 SIH, one at a time", "PX4 on the plant and the examples",
              "ArduPilot's tier"]
     for name, (failed, passed, seconds) in zip(names, runs):
         print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")

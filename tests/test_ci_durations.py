@@ -30,7 +30,7 @@ def test_the_durations_are_read_from_the_three_summaries_and_the_whole_run(tmp_p
     r = run(tmp_path, LOG)
     assert r.returncode == 0, r.stderr
     assert "everything but the firmware: 889 passed in 363 s" in r.stdout
-    assert "PX4 SIH, two at a time: 16 passed in 383 s" in r.stdout
+    assert "PX4 SIH, one at a time: 16 passed in 383 s" in r.stdout
     assert "ArduPilot's tier: 21 passed in 400 s" in r.stdout
     assert "PX4 on the plant and the examples: 13 passed in 50 s" in r.stdout
     assert "in all: 1181 s (19.7 minutes)" in r.stdout
@@ -45,8 +45,8 @@ def test_the_readme_sentence_is_replaced_between_its_markers_and_nothing_else(tm
     assert text.startswith("before\n<!-- ci-durations -->\n") and text.endswith("<!-- /ci-durations -->\nafter\n")
     assert "old words" not in text
     assert ("`.ci/run`, 2026-12-05, commit abc1234): 19.7 minutes in all (1181 s) — install and lint, "
-            "889 tests in 363 s, 16 PX4 tests two at a time in 383 s, 13 more (PX4 on our plant, MAVSDK's examples) "
-            "one at a time in 50 s, 21 ArduPilot tests in 400 s.") in text
+            "889 tests in 363 s, 16 PX4 SIH tests one at a time in 383 s, 13 more (PX4 on our plant, "
+            "MAVSDK's examples) one at a time in 50 s, 21 ArduPilot tests in 400 s.") in text
 
 
 def test_a_failed_or_partial_run_is_not_written(tmp_path):

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import operator
 import struct
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 from pymavlink.generator.mavcrc import x25crc
 
-__all__ = ["STX_V2", "frame", "pack_message"]
+__all__ = ["STX_V2", "Payload", "frame", "pack_message", "pack_payload"]
 
 STX_V2 = 0xFD
 """the first byte of every MAVLink 2 frame"""
@@ -58,8 +58,48 @@ def pack_message(msg: Any, seq: int, sysid: int, compid: int) -> bytes:
     with this sequence number, system and component)."""
     cls = type(msg)
     plan = _PLANS.get(cls) or _plan(cls)
-    unpacker, get, arrays, msg_id, crc_extra = plan
-    values = get(msg)
+    return _framed(plan, plan[1](msg), seq, sysid, compid)
+
+
+class Payload(NamedTuple):
+    """A message not yet built: its pymavlink class and its fields in the order that class's
+    ``*_encode`` takes them (char arrays as bytes). :meth:`message` builds pymavlink's object (a
+    signed link packs that; a reader reads its fields)."""
+
+    cls: type
+    values: tuple[Any, ...]
+
+    def message(self) -> Any:
+        return self.cls(*self.values)
+
+    def get_type(self) -> str:
+        return str(self.cls.msgname)  # type: ignore[attr-defined]
+
+
+_VALUE_PLANS: dict[type, _Plan] = {}
+
+
+def _value_plan(cls: type) -> _Plan:
+    """:func:`_plan` for fields given in declared order: the getter picks them in wire order."""
+    c: Any = cls
+    chars = {name for name, kind in zip(c.fieldnames, c.fieldtypes) if kind == "char"}
+    names = tuple(c.ordered_fieldnames)
+    arrays = tuple(i for i, (name, length) in enumerate(zip(names, c.array_lengths)) if length and name not in chars)
+    getter = operator.itemgetter(*(list(c.fieldnames).index(name) for name in names))
+    get = getter if len(names) > 1 else (lambda v: (getter(v),))
+    plan = (c.unpacker, get, arrays, int(c.id), int(c.crc_extra))
+    _VALUE_PLANS[cls] = plan
+    return plan
+
+
+def pack_payload(p: Payload, seq: int, sysid: int, compid: int) -> bytes:
+    """The unsigned MAVLink 2 frame of ``p`` (what ``p.message().pack`` sends from such a link)."""
+    plan = _VALUE_PLANS.get(p.cls) or _value_plan(p.cls)
+    return _framed(plan, plan[1](p.values), seq, sysid, compid)
+
+
+def _framed(plan: _Plan, values: tuple[Any, ...], seq: int, sysid: int, compid: int) -> bytes:
+    unpacker, _, arrays, msg_id, crc_extra = plan
     if arrays:
         flat: list[Any] = []
         start = 0

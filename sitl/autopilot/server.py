@@ -42,7 +42,7 @@ from companion.control import quaternion as quat
 from companion.control.vector import Vec3
 from companion.mavlink import ftp
 from companion.mavlink.events import CATALOGUE_PATH, encode_event_frame
-from companion.mavlink.framing import pack_message
+from companion.mavlink.framing import Payload, pack_message, pack_payload
 from companion.mavlink.signing import VEHICLE_ACCEPTS_UNSIGNED, SignatureCheck, enable_signing, is_signed
 from companion.mavlink.udp import UdpEndpoint
 from companion.mavlink.wire import new_parser, parse_datagram
@@ -55,7 +55,7 @@ from .pacing import REPEAT_WALL_S, Wait, WorldPacing
 from .shaping import NAN3, TrajectoryTarget, body_to_ned
 from .parameters import ParamTable, build_parameters
 from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
-from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Telemetry
+from .telemetry import DEFAULT_RATES_HZ, GeoOrigin, Message, Telemetry
 
 __all__ = ["ServerConfig", "MavlinkServer", "MAX_PEERS", "PX4_LISTEN", "PX4_PEER", "trajectory_target"]
 
@@ -232,26 +232,29 @@ class MavlinkServer:
 
     # --- sending -------------------------------------------------------------------------
 
-    def _pack(self, msg: mavlink.MAVLink_message, peer: Peer | None = None) -> bytes:
+    def _pack(self, msg: Message, peer: Peer | None = None) -> bytes:
         """The frame, numbered in ``peer``'s own sequence (a client that is no peer: the vehicle's
         shared one). ``pack`` alone does not advance the number; a receiver uses it to see loss and
         to tell two senders apart, so each client sees an unbroken count, whatever the others get."""
         mav = self.mav
-        if peer is None:
-            buf = msg.pack(mav) if mav.signing.sign_outgoing else pack_message(msg, mav.seq, mav.srcSystem,
-                                                                                 mav.srcComponent)
-            mav.seq = (mav.seq + 1) % 256
-            return buf
+        seq = mav.seq if peer is None else peer.seq
         if mav.signing.sign_outgoing:  # the signature needs pymavlink's link state
-            shared, mav.seq = mav.seq, peer.seq
+            if isinstance(msg, Payload):
+                msg = msg.message()
+            shared, mav.seq = mav.seq, seq
             buf = msg.pack(mav)
             mav.seq = shared
+        elif isinstance(msg, Payload):
+            buf = pack_payload(msg, seq, mav.srcSystem, mav.srcComponent)
         else:
-            buf = pack_message(msg, peer.seq, mav.srcSystem, mav.srcComponent)
-        peer.seq = (peer.seq + 1) % 256
+            buf = pack_message(msg, seq, mav.srcSystem, mav.srcComponent)
+        if peer is None:
+            mav.seq = (seq + 1) % 256
+        else:
+            peer.seq = (seq + 1) % 256
         return buf
 
-    def _deliver(self, to: Iterable[Peer | Address], payload: mavlink.MAVLink_message | bytes,
+    def _deliver(self, to: Iterable[Peer | Address], payload: Message | bytes,
                  count: bool = True) -> None:
         """The one way out: ``payload`` to each of ``to``. A message is packed in each peer's own
         sequence (an address that is no peer: the shared one); a frame packed elsewhere (an event, a
@@ -269,7 +272,7 @@ class MavlinkServer:
         if count and any_sent:
             self.stats["sent"] += 1
 
-    def send(self, msg: mavlink.MAVLink_message | bytes) -> None:
+    def send(self, msg: Message | bytes) -> None:
         """To every peer (STATUSTEXT, events, parameter changes)."""
         self._deliver(self.peers, msg)
 
@@ -360,7 +363,7 @@ class MavlinkServer:
         order = list(dict.fromkeys(m for peer, ids in sorted(plan, key=lambda p: p[0].addr != table.controller)
                                    for m in ids))
         enc = self.telemetry.encoders
-        encoded: dict[int, mavlink.MAVLink_message | None] = {}
+        encoded: dict[int, Message | None] = {}
         for msg_id in order:
             encoded[msg_id] = msg = enc[msg_id]()
             if msg is not None:
@@ -862,7 +865,10 @@ class MavlinkServer:
                 if now - last_expire > 1.0:
                     self._expire_peers()
                     last_expire = now
-                await asyncio.sleep(pacing.sleep_s(time.monotonic(), ap.t, step.locked))
+                pause = pacing.sleep_s(time.monotonic(), ap.t, step.locked)
+                if not (step.locked and pacing.late(ap.t, ap.follows_stream)):
+                    await asyncio.sleep(pause)
+                # else at the lockstep stop: straight to the wait for the next setpoint (which yields)
         finally:
             self.run_wall_s = time.monotonic() - pacing.run_wall0
             self.run_cpu = {"cpu_s": round(time.process_time() - cpu0, 3), "sim_s": round(ap.t - t0, 3)}

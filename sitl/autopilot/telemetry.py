@@ -11,12 +11,13 @@ and bias-corrected rates, the IMU.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Callable, Union
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.control import quaternion as quat
 from companion.mavlink.boot_time import BOOT_MS_MODULUS, unwrap_boot_s
+from companion.mavlink.framing import Payload
 from companion.control.vector import Vec3
 
 from ..plant.geo import GeoOrigin
@@ -66,6 +67,10 @@ DEFAULT_RATES_HZ: dict[int, float] = {
 """Default stream rates (simulated Hz), PX4's onboard-link set; SET_MESSAGE_INTERVAL changes them."""
 
 
+Message = Union[mavlink.MAVLink_message, Payload]
+"""what an encoder returns: pymavlink's object, or (the streams sent most) the fields alone"""
+
+
 def _f(x: object) -> float:
     return float(x)  # type: ignore[arg-type]
 
@@ -87,7 +92,7 @@ class Telemetry:
         self.mav = mav
         self.origin = origin
         self.autopilot_type = autopilot_type
-        self.encoders: dict[int, Callable[[], mavlink.MAVLink_message]] = {
+        self.encoders: dict[int, Callable[[], Message | None]] = {
             mavlink.MAVLINK_MSG_ID_HEARTBEAT: self.heartbeat,
             mavlink.MAVLINK_MSG_ID_SYS_STATUS: self.sys_status,
             mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: self.extended_sys_state,
@@ -122,7 +127,7 @@ class Telemetry:
 
     # --- messages --------------------------------------------------------------------------
 
-    def heartbeat(self) -> mavlink.MAVLink_message:
+    def heartbeat(self) -> Message:
         ap = self.ap
         base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
         if ap.armed:
@@ -139,55 +144,53 @@ class Telemetry:
         ap = self.ap
         return ap.landed and ap.t >= 1.0 and ap.has_position
 
-    def sys_status(self) -> mavlink.MAVLink_message:
+    def sys_status(self) -> Message:
         health = SYS_STATUS_SENSORS | (PREARM_CHECK if self.armable() or self.ap.armed else 0)
         present = SYS_STATUS_SENSORS | PREARM_CHECK
         return self.mav.sys_status_encode(
             present, present, health, 250, 16000, -1, 100, 0, 0, 0, 0, 0, 0
         )
 
-    def extended_sys_state(self) -> mavlink.MAVLink_message:
+    def extended_sys_state(self) -> Message:
         return self.mav.extended_sys_state_encode(mavlink.MAV_VTOL_STATE_UNDEFINED, int(self.ap.landed_state))
 
-    def attitude_quaternion(self) -> mavlink.MAVLink_message:
+    def attitude_quaternion(self) -> Message:
         v = self.ap.vehicle
         q, w = v.estimator.q, v.omega_est
-        return self.mav.attitude_quaternion_encode(
-            self.time_boot_ms, _f(q[0]), _f(q[1]), _f(q[2]), _f(q[3]), _f(w[0]), _f(w[1]), _f(w[2]), [0.0] * 4
-        )
+        return Payload(mavlink.MAVLink_attitude_quaternion_message, (
+            self.time_boot_ms, _f(q[0]), _f(q[1]), _f(q[2]), _f(q[3]), _f(w[0]), _f(w[1]), _f(w[2]), [0.0] * 4))
 
-    def attitude(self) -> mavlink.MAVLink_message:
+    def attitude(self) -> Message:
         v = self.ap.vehicle
         r, p, y = quat.to_euler(v.estimator.q)
         w = v.omega_est
-        return self.mav.attitude_encode(self.time_boot_ms, _f(r), _f(p), _f(y), _f(w[0]), _f(w[1]), _f(w[2]))
+        return Payload(mavlink.MAVLink_attitude_message,
+                       (self.time_boot_ms, _f(r), _f(p), _f(y), _f(w[0]), _f(w[1]), _f(w[2])))
 
-    def local_position_ned(self) -> mavlink.MAVLink_message | None:
+    def local_position_ned(self) -> Message | None:
         """None (not sent) while the tracking system is silent: a stale position must not look fresh,
         and while the estimator has no origin (ArduCopter: ~40 s after boot)."""
         if self.ap.vehicle.position_age_s > POSITION_STALE_S or not self.ap.has_position:
             return None
         ms = self.ap.vehicle.tracked
         p, vel = _estimate(ms.pos_ned_m, self.ap.vehicle.estimate_offset_ned_m), ms.vel_ned_m_s
-        return self.mav.local_position_ned_encode(
-            self.time_boot_ms, _f(p[0]), _f(p[1]), _f(p[2]), _f(vel[0]), _f(vel[1]), _f(vel[2])
-        )
+        return Payload(mavlink.MAVLink_local_position_ned_message, (
+            self.time_boot_ms, _f(p[0]), _f(p[1]), _f(p[2]), _f(vel[0]), _f(vel[1]), _f(vel[2])))
 
-    def odometry(self) -> mavlink.MAVLink_message:
+    def odometry(self) -> Message:
         v = self.ap.vehicle
         ms = v.tracked
         q, w = v.estimator.q, v.omega_est
         vb = quat.rotate_inverse(q, ms.vel_ned_m_s)  # ODOMETRY velocity is in the child frame
         nan21 = [math.nan] + [0.0] * 20
         p = _estimate(ms.pos_ned_m, v.estimate_offset_ned_m)
-        return self.mav.odometry_encode(
+        return Payload(mavlink.MAVLink_odometry_message, (
             self.time_usec, mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_FRD,
             p[0], p[1], p[2], [_f(c) for c in q], _f(vb[0]), _f(vb[1]), _f(vb[2]),
             _f(w[0]), _f(w[1]), _f(w[2]), nan21, nan21, v.estimator_resets & 0xFF,
-            mavlink.MAV_ESTIMATOR_TYPE_VISION, 100,
-        )
+            mavlink.MAV_ESTIMATOR_TYPE_VISION, 100))
 
-    def highres_imu(self) -> mavlink.MAVLink_message:
+    def highres_imu(self) -> Message:
         v = self.ap.vehicle
         s = v.imu_sample
         a, g = s.specific_force_body_m_s2, s.gyro_rad_s
@@ -196,50 +199,47 @@ class Telemetry:
         alt = self.origin.alt_m - _f(v.state.pos_ned_m[2])
         pressure_hpa = 1013.25 * (1.0 - 2.25577e-5 * alt) ** 5.25588
         fields = 0x1FFF  # acc, gyro, mag, abs pressure, diff pressure, pressure alt, temperature
-        return self.mav.highres_imu_encode(
+        return Payload(mavlink.MAVLink_highres_imu_message, (
             self.time_usec, _f(a[0]), _f(a[1]), _f(a[2]), _f(g[0]), _f(g[1]), _f(g[2]),
-            _f(m[0]), _f(m[1]), _f(m[2]), pressure_hpa, 0.0, alt, 20.0, fields, 0,
-        )
+            _f(m[0]), _f(m[1]), _f(m[2]), pressure_hpa, 0.0, alt, 20.0, fields, 0))
 
-    def global_position_int(self) -> mavlink.MAVLink_message:
+    def global_position_int(self) -> Message:
         ap = self.ap
         ms = ap.vehicle.tracked
         p, vel = _estimate(ms.pos_ned_m, ap.vehicle.estimate_offset_ned_m), ms.vel_ned_m_s
         lat, lon, alt = self.origin.to_global(p[0], p[1], p[2])
         yaw = _f(quat.to_euler(ap.vehicle.estimator.q)[2])
         hdg = int(round(math.degrees(yaw) % 360.0 * 100)) % 36000
-        return self.mav.global_position_int_encode(
+        return Payload(mavlink.MAVLink_global_position_int_message, (
             self.time_boot_ms, lat, lon, alt, int(round((_f(ap.home[2]) - _f(p[2])) * 1000)),
-            int(round(_f(vel[0]) * 100)), int(round(_f(vel[1]) * 100)), int(round(_f(vel[2]) * 100)), hdg,
-        )
+            int(round(_f(vel[0]) * 100)), int(round(_f(vel[1]) * 100)), int(round(_f(vel[2]) * 100)), hdg))
 
-    def gps_raw_int(self) -> mavlink.MAVLink_message:
+    def gps_raw_int(self) -> Message:
         v = self.ap.vehicle
         p = _estimate(v.tracked.pos_ned_m, v.estimate_offset_ned_m)
         lat, lon, alt = self.origin.to_global(p[0], p[1], p[2])
         return self.mav.gps_raw_int_encode(self.time_usec, mavlink.GPS_FIX_TYPE_3D_FIX, lat, lon, alt, 80, 120, 0,
                                            65535, 16)
 
-    def home_position(self) -> mavlink.MAVLink_message:
+    def home_position(self) -> Message:
         h = self.ap.home
         lat, lon, alt = self.origin.to_global(_f(h[0]), _f(h[1]), _f(h[2]))
         return self.mav.home_position_encode(
             lat, lon, alt, _f(h[0]), _f(h[1]), _f(h[2]), [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, self.time_usec
         )
 
-    def attitude_target(self) -> mavlink.MAVLink_message:
+    def attitude_target(self) -> Message:
         ap = self.ap
         sp = ap.setpoint
         q, w = sp.q_d, sp.omega_d_rad_s
         thrust = _f(sp.thrust_n) / ap.vehicle.scenario.vehicle.thrust_max_n
-        return self.mav.attitude_target_encode(
-            self.time_boot_ms, 0, [_f(c) for c in q], _f(w[0]), _f(w[1]), _f(w[2]), thrust
-        )
+        return Payload(mavlink.MAVLink_attitude_target_message, (
+            self.time_boot_ms, 0, [_f(c) for c in q], _f(w[0]), _f(w[1]), _f(w[2]), thrust))
 
-    def system_time(self) -> mavlink.MAVLink_message:
+    def system_time(self) -> Message:
         return self.mav.system_time_encode(0, self.time_boot_ms)
 
-    def autopilot_version(self) -> mavlink.MAVLink_message:
+    def autopilot_version(self) -> Message:
         caps = (
             mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
             | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
@@ -254,5 +254,5 @@ class Telemetry:
             caps, version, version, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0x15D0_0001, [0] * 18
         )
 
-    def statustext(self, severity: int, text: str) -> mavlink.MAVLink_message:
+    def statustext(self, severity: int, text: str) -> Message:
         return self.mav.statustext_encode(severity, text.encode("ascii", "replace")[:50], 0, 0)

@@ -147,7 +147,7 @@ def write_specific_force_sum(row: NDArray[np.float64], sf_sum: list[float], coun
 
 def state_from(values: list[float]) -> VehicleState:
     """The state from a row's numbers (``row.tolist()``), in Python."""
-    return _unpack_state(values)  # type: ignore[no-any-return]
+    return _STATE.unpack_py(values)  # type: ignore[no-any-return]
 
 
 def const_of(v: SimVehicle) -> VehicleConst:
@@ -236,3 +236,24 @@ def warm_up(v: SimVehicle) -> None:
     sp = AttitudeSetpoint((1.0, 0.0, 0.0, 0.0), ZERO3, 0.0)
     compile_once(advance_compiled, *const_rows(const_of(v)), state_row(state_of(v)), sp, True, ZERO3, ZERO3, 1, 1.0,
                  1.0)
+
+
+def main() -> int:
+    """``python -m sitl.plant.chunk``: compile the kernel into the disk cache now (the first
+    ``sitl`` would otherwise compile it while it boots, ~15 s; the test suite does this first)."""
+    import time
+
+    from .scenario import Scenario
+    from .vehicle import SimVehicle
+
+    t0 = time.monotonic()
+    v = SimVehicle(Scenario(name="warm-up"), "ism_do", 1, ZERO3, 0.0, hovering=False)
+    if not v.compile_chunks():
+        print("sitl.plant.chunk: numba is not installed: the vehicle steps its objects")
+        return 0
+    print(f"sitl.plant.chunk: the vehicle's kernel is compiled and cached ({time.monotonic() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -44,6 +44,8 @@ class Codec(NamedTuple):
     """the columns ``unpack_lanes`` reads as the batch's (one value for all vehicles)"""
     write: Callable[[Any, Any], None]
     """``(row, value)`` (jitable): ``pack`` inside compiled code, into a row that exists (arrays left out)"""
+    unpack_py: Callable[..., Any]
+    """``unpack`` for Python only (a list of the row's numbers: ``row.tolist()``), several times faster"""
 
 
 _CACHE: dict[tuple[Any, ...], Codec] = {}
@@ -80,22 +82,23 @@ def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tup
 
     writes: list[str] = []
 
-    def build(s: Any, path: str, access: str = "v") -> tuple[str, str]:
-        """(row expression, lanes expression) of the field at ``path`` (``access``: how ``write`` reads it)."""
+    def build(s: Any, path: str, access: str = "v") -> tuple[str, str, str]:
+        """(row expression, lanes expression, Python's row expression) of the field at ``path``
+        (``access``: how ``write`` reads it)."""
         if s == "array":
             n_arrays[0] += 1
-            return f"a{n_arrays[0] - 1}", f"a{n_arrays[0] - 1}"
+            return (f"a{n_arrays[0] - 1}",) * 3  # type: ignore[return-value]
         if s in ("bool", "int", "float"):
             j = index[0]
             index[0] += 1
             writes.append(f"    row[{j}] = {'1.0 if ' + access + ' else 0.0' if s == 'bool' else access}\n")
             one = {"bool": f"(row[{j}] != 0.0)", "int": f"int(row[{j}])", "float": f"row[{j}]"}[s]
             if s == "float" and below(path, per_vehicle):
-                return one, f"load(cols, {j}, i0)"
+                return one, f"load(cols, {j}, i0)", one
             if s == "int" and below(path, per_vehicle_ints):
-                return one, f"load_int(cols, {j}, i0)"
+                return one, f"load_int(cols, {j}, i0)", one
             uniform.append(j)
-            return one, one.replace(f"row[{j}]", f"cols[{j}, i0]")
+            return one, one.replace(f"row[{j}]", f"cols[{j}, i0]"), one
         cls, items = s
         fields = getattr(cls, "_fields", None)
         parts = [build(item, f"{path}.{fields[i] if fields else i}".lstrip("."),
@@ -103,12 +106,14 @@ def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tup
                  for i, item in enumerate(items)]
         if cls is tuple:
             return tuple("(" + ", ".join(p[k] for p in parts) + ("," if len(parts) == 1 else "") + ")"
-                         for k in (0, 1))  # type: ignore[return-value]
+                         for k in (0, 1, 2))  # type: ignore[return-value]
         name = f"T{len(names)}"
         names[name] = cls
-        return tuple(f"{name}(" + ", ".join(p[k] for p in parts) + ")" for k in (0, 1))  # type: ignore[return-value]
+        # Python's form skips the NamedTuple's own __new__ (argument handling that costs more than the tuple)
+        py = f"_new({name}, (" + ", ".join(p[2] for p in parts) + ("," if len(parts) == 1 else "") + "))"
+        return (*(f"{name}(" + ", ".join(p[k] for p in parts) + ")" for k in (0, 1)), py)  # type: ignore[return-value]
 
-    expr, lanes_expr = build(shape, "")
+    expr, lanes_expr, py_expr = build(shape, "")
     params = "".join(f", a{i}" for i in range(n_arrays[0]))
     # named after the structure: compiled code keeps a function by its name and argument types, and
     # two codecs' unpacks (same arguments, different tuples) compiled in different processes must
@@ -116,14 +121,16 @@ def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tup
     tag = hashlib.sha256(repr(key).encode()).hexdigest()[:12]
     src = (f"def unpack_{tag}(row{params}):\n    return {expr}\n\n"
            f"def unpack_lanes_{tag}(cols, i0{params}):\n    return {lanes_expr}\n\n"
-           f"def write_{tag}(row, v):\n{''.join(writes) or '    pass' + chr(10)}")
+           f"def write_{tag}(row, v):\n{''.join(writes) or '    pass' + chr(10)}\n"
+           f"def unpack_py_{tag}(row{params}):\n    return {py_expr}\n")
     from .lanes import load, load_int
 
-    scope: dict[str, Any] = dict(names, load=load, load_int=load_int)
+    scope: dict[str, Any] = dict(names, load=load, load_int=load_int, _new=tuple.__new__)
     exec(compile(src, f"<codec of {type(example).__name__}>", "exec"), scope)  # noqa: S102
     unpack = jitable(scope[f"unpack_{tag}"])
     unpack_lanes = jitable(scope[f"unpack_lanes_{tag}"])
     write = jitable(scope[f"write_{tag}"])
+    unpack_py = scope[f"unpack_py_{tag}"]
 
     def pack(value: Any) -> list[float]:
         out: list[float] = []
@@ -153,6 +160,6 @@ def codec(example: Any, per_vehicle: tuple[str, ...] = (), per_vehicle_ints: tup
         walk(value)
         return tuple(out)
 
-    c = Codec(index[0], pack, unpack, arrays, unpack_lanes, tuple(uniform), write)
+    c = Codec(index[0], pack, unpack, arrays, unpack_lanes, tuple(uniform), write, unpack_py)
     _CACHE[key] = c
     return c
