@@ -43,6 +43,10 @@ the vehicle's, well inside the offboard loss timeout (1 s). On PX4 SIH they run 
 (tests/run_tiers.sh): the examples' client reads telemetry without stamps, and beside other tests
 one read a velocity 1.3 m/s off the one PX4 had reached by the end of its step. And at 2x: at 4x,
 alone, two of the four ended a hold 0.02 m/s past their bound (0.32 m/s of 0.3, 0.52 m of 0.5)"""
+FIRMWARE_SPEED_OF = {"test_offboard_velocity_body_example_turns_climbs_and_flies_its_circles": 1.0}
+"""examples flown slower on PX4 SIH: at 2x the body-velocity example's stops ended at 0.32-0.39 m/s
+(bound 0.3) in four runs of 2026-12-06 on an idle host, at b274780 too, and its circle once at 2.75 m/s
+(3.5 expected); at 1x it passed"""
 
 
 @dataclass(frozen=True)
@@ -114,8 +118,9 @@ def vehicle(request) -> Iterator[Vehicle]:  # type: ignore[no-untyped-def]
     build, why = find_px4()
     if build is None:
         pytest.skip(why)
-    with Px4Sih(build, speed=SPEED["firmware"]) as p:
-        yield Vehicle("PX4 v1.16 SIH", p.url, SPEED["firmware"], PX4_SIH_LOOP)
+    speed = FIRMWARE_SPEED_OF.get(request.node.originalname, SPEED["firmware"])
+    with Px4Sih(build, speed=speed) as p:
+        yield Vehicle("PX4 v1.16 SIH", p.url, speed, PX4_SIH_LOOP)
 
 
 @dataclass
