@@ -39,7 +39,7 @@ run() {  # name, then pytest's arguments; an interrupted run (exit 2) stops the 
 
 # the bundled vehicle's compiled kernel into the disk cache beside pytest's start-up (sitl/plant/chunk.py):
 # a vehicle that boots meanwhile waits for it under a file lock instead of compiling its own
-"$PY" -m sitl.plant.chunk &
+"$PY" -m sitl.plant.warm &
 # shellcheck disable=SC2086 # the file lists are meant to split
 run "everything but the firmware" -n 6 -m "not firmware" --durations=25 &&
   run "PX4 SIH and its clients, one at a time" -m "firmware and not ardupilot" \

@@ -11,15 +11,15 @@ back. A chunk runs only where the kernel flies what the objects would (:func:`fi
 no fault injected in it, the IMU healthy; and it stops before a step whose IMU sample the firmware's
 check would reject (out of range, non-finite, repeated exactly), so the objects take that step and
 the check sees it. The kernel draws its noise from the counter-based streams (:mod:`sitl.plant.rng`,
-keyed by the vehicle's seed and step count), the objects from their blocks: a seeded flight is the
-same flight each time, whichever steps each part takes.
+keyed by the vehicle's seed and step count), the objects from their blocks: which steps each takes
+is decided by the flight itself, so a seeded flight is the same flight each time.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,8 +46,8 @@ from .kernel import (
 )
 from .sensors import ImuSample
 
-if TYPE_CHECKING:
-    from .vehicle import SimVehicle
+SimVehicle = Any
+"""a :class:`~sitl.plant.vehicle.SimVehicle` (which imports this module: not imported here)"""
 
 depends_on(__file__)
 
@@ -219,9 +219,8 @@ def put_back(v: SimVehicle, st: VehicleState) -> None:
 
 
 def fits(v: SimVehicle, steps: int) -> bool:
-    """Whether the kernel flies the next ``steps`` as the objects would: one vehicle, its own
-    firmware's loop (not a real autopilot's rotor commands), the IMU healthy and no fault injected
-    in the window."""
+    """Whether the kernel flies the next ``steps`` as the objects would: one vehicle, the IMU healthy
+    (not the gyro-less loop of a failed one) and no fault injected in the window."""
     if v.batch or v._degraded or (v.imu_monitor is not None and v.imu_monitor.failed):
         return False
     f = v.faults
@@ -237,23 +236,3 @@ def warm_up(v: SimVehicle) -> None:
     compile_once(advance_compiled, *const_rows(const_of(v)), state_row(state_of(v)), sp, True, ZERO3, ZERO3, 1, 1.0,
                  1.0)
 
-
-def main() -> int:
-    """``python -m sitl.plant.chunk``: compile the kernel into the disk cache now (the first
-    ``sitl`` would otherwise compile it while it boots, ~15 s; the test suite does this first)."""
-    import time
-
-    from .scenario import Scenario
-    from .vehicle import SimVehicle
-
-    t0 = time.monotonic()
-    v = SimVehicle(Scenario(name="warm-up"), "ism_do", 1, ZERO3, 0.0, hovering=False)
-    if not v.compile_chunks():
-        print("sitl.plant.chunk: numba is not installed: the vehicle steps its objects")
-        return 0
-    print(f"sitl.plant.chunk: the vehicle's kernel is compiled and cached ({time.monotonic() - t0:.1f} s)")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -231,8 +231,9 @@ class SimVehicle:
         return done
 
     def _mark(self) -> tuple:
-        """What the objects hold, by identity: a changed one (a step of the objects, a fault, a guard
-        restoring the world) means the row of :meth:`_compiled_chunk` is no longer the vehicle's state."""
+        """What the objects hold (compared by identity first, then value): a changed one (a step of the
+        objects, a fault, a guard restoring the world, a parameter) means the row of
+        :meth:`_compiled_chunk` is no longer the vehicle's state."""
         m, o, e = self.mocap, self.onboard, self.estimator
         return (self.steps, self.t, self.plant.state, self.wrench, self.wind, self.wind_ned, self.imu_sample,
                 self.omega_est, m.latest, m._next_t, len(m._pending), self.mocap_taken, e.q, e.gyro_bias, o,
