@@ -36,15 +36,15 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from companion.flight import Flight, FlightOptions, run_flight  # noqa: E402
 from companion.mission import load_mission  # noqa: E402
 from companion.vehicle_process import VehicleProcess  # noqa: E402
+from timed_vehicle import Piece, put_back, time_in_place  # noqa: E402
 
 MISSION = ROOT / "missions" / "waypoints.toml"
 
@@ -60,7 +60,7 @@ def _proc_cpu(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-PIECES = {  # piece: (module, class or None, function) timed in place
+PIECES: dict[str, Piece] = {  # piece: (module, class or None, function) timed in place
     "parse": ("companion.link.pymavlink_link", None, "parse_datagram"),
     "state": ("companion.link.pymavlink_link", "PymavlinkLink", "_handle"),
     "law": ("companion.flight.offboard", "OffboardController", "step"),
@@ -75,28 +75,11 @@ PIECES = {  # piece: (module, class or None, function) timed in place
 @contextlib.contextmanager
 def timed_pieces() -> Iterator[dict[str, list[float]]]:
     """CPU seconds and calls of each piece while the block runs (the originals put back after)."""
-    import importlib
-    spent: dict[str, list[float]] = {}
-    undo = []
-    for piece, (module, cls, name) in PIECES.items():
-        owner = getattr(importlib.import_module(module), cls) if cls else importlib.import_module(module)
-        original = getattr(owner, name)
-        acc = spent[piece] = [0.0, 0]
-
-        def timed(*args: Any, _f: Callable[..., Any] = original, _acc: list[float] = acc, **kw: Any) -> Any:
-            c0 = time.process_time()
-            try:
-                return _f(*args, **kw)
-            finally:
-                _acc[0] += time.process_time() - c0
-                _acc[1] += 1
-        setattr(owner, name, timed)
-        undo.append((owner, name, original))
+    spent, undo = time_in_place(PIECES)
     try:
         yield spent
     finally:
-        for owner, name, original in undo:
-            setattr(owner, name, original)
+        put_back(undo)
 
 
 def pieces_table(r: dict[str, float], spent: dict[str, list[float]]) -> None:

@@ -23,7 +23,10 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-PIECES = {  # piece: (module, class, method) timed in place
+Piece = tuple[str, str | None, str]
+"""(module, class or None for a module's function, function): a piece timed in place"""
+
+PIECES: dict[str, Piece] = {  # piece: (module, class, method) timed in place
     "plant": ("sitl.plant.vehicle", "SimVehicle", "step_many"),
     "rules": ("sitl.autopilot.logic", "Autopilot", "decide"),
     "rules ": ("sitl.autopilot.logic", "Autopilot", "observe"),
@@ -33,11 +36,15 @@ PIECES = {  # piece: (module, class, method) timed in place
 }
 
 
-def install() -> dict[str, list[float]]:
+def time_in_place(pieces: dict[str, Piece]) -> tuple[dict[str, list[float]], list[tuple[Any, str, Any]]]:
+    """Wrap each piece's function so that every call adds its CPU seconds and one call to the
+    piece's tally; (the tallies, what :func:`put_back` restores). bench_lockstep times the
+    companion's pieces with it too."""
     import importlib
     spent: dict[str, list[float]] = {}
-    for piece, (module, cls, name) in PIECES.items():
-        owner = getattr(importlib.import_module(module), cls)
+    undo = []
+    for piece, (module, cls, name) in pieces.items():
+        owner = getattr(importlib.import_module(module), cls) if cls else importlib.import_module(module)
         original = getattr(owner, name)
         acc = spent[piece] = [0.0, 0]
 
@@ -49,14 +56,20 @@ def install() -> dict[str, list[float]]:
                 _acc[0] += time.process_time() - c0
                 _acc[1] += 1
         setattr(owner, name, timed)
-    return spent
+        undo.append((owner, name, original))
+    return spent, undo
+
+
+def put_back(undo: list[tuple[Any, str, Any]]) -> None:
+    for owner, name, original in undo:
+        setattr(owner, name, original)
 
 
 def main() -> int:
     out = Path(sys.argv[1])
     if sys.argv[2:4] != ["-m", "sitl"]:
         raise SystemExit("usage: timed_vehicle.py OUT.json -m sitl [options]")
-    spent = install()
+    spent, _ = time_in_place(PIECES)
     from sitl.autopilot import server as server_module
     from sitl.cli import main as sitl_main
 
