@@ -11,54 +11,79 @@ for a payload packed elsewhere (EVENT, which the dialect lacks). Signed links ke
 
 from __future__ import annotations
 
-import operator
 import struct
 from typing import Any, Callable, NamedTuple
 
 from pymavlink.generator.mavcrc import x25crc
 
+try:  # pymavlink's own CRC backend (it requires it): CRC-16/MCRF4XX from 0xFFFF in one C call, no object
+    from fastcrc.crc16 import mcrf4xx as _crc
+except ImportError:  # pragma: no cover - pymavlink without fastcrc
+    def _crc(data: bytes) -> int:
+        """CRC-16/MCRF4XX of ``data`` (MAVLink's X.25 checksum)."""
+        return int(x25crc(data).crc)
+
 __all__ = ["STX_V2", "Payload", "frame", "pack_message", "pack_payload"]
 
 STX_V2 = 0xFD
 """the first byte of every MAVLink 2 frame"""
-_HEADER = struct.Struct("<BBBBBBBHB")
-"""STX, payload length, incompat and compat flags, sequence, system, component, message id (24 bits)"""
+
+
+_BODY = struct.Struct("<BBBBBBHB")
+"""the header after STX: payload length, incompat and compat flags, sequence, system, component, message id"""
+_BYTE = tuple(bytes((i,)) for i in range(256))
 
 
 def frame(msg_id: int, crc_extra: int, payload: bytes, seq: int, sysid: int, compid: int) -> bytes:
     """``payload`` framed as MAVLink 2, unsigned: trailing zero bytes trimmed (one byte at least, as
     MAVLink 2 sends them), the CRC over the header after STX, the payload and the message's CRC_EXTRA."""
     payload = payload.rstrip(b"\x00") or payload[:1]
-    header = _HEADER.pack(STX_V2, len(payload), 0, 0, seq & 0xFF, sysid, compid, msg_id & 0xFFFF, msg_id >> 16)
-    crc = x25crc(header[1:] + payload + bytes((crc_extra,))).crc
-    return header + payload + crc.to_bytes(2, "little")
+    body = _BODY.pack(len(payload), 0, 0, seq & 0xFF, sysid, compid, msg_id & 0xFFFF, msg_id >> 16) + payload
+    crc = _crc(body + _BYTE[crc_extra])
+    return b"\xfd" + body + _BYTE[crc & 0xFF] + _BYTE[crc >> 8]
 
 
-_Plan = tuple[Any, Callable[[Any], tuple[Any, ...]], tuple[int, ...], int, int]
-_PLANS: dict[type, _Plan] = {}
+_Framer = Callable[[Any, int, int, int], bytes]
+"""(the message or its fields, sequence, system, component) -> the frame"""
+_FROM_MESSAGE: dict[type, _Framer] = {}
+_FROM_VALUES: dict[type, _Framer] = {}
 
 
-def _plan(cls: type) -> _Plan:
-    """(payload struct, the fields' getter in wire order, the positions of the numeric arrays among
-    them, message id, CRC_EXTRA) of a pymavlink message class."""
+def _framer(cls: type, from_values: bool) -> _Framer:
+    """The framing of pymavlink message class ``cls`` as one function (generated once per class, as a
+    compiled codec is): its fields read in wire order from the message object, or from the values in
+    the order its ``*_encode`` takes them (``from_values``), numeric arrays spread, char arrays as
+    the one bytes value pymavlink keeps beside the text it shows; packed with the class's own struct;
+    trailing zeros trimmed; framed as :func:`frame` frames."""
     c: Any = cls
     chars = {name for name, kind in zip(c.fieldnames, c.fieldtypes) if kind == "char"}
-    names = tuple(c.ordered_fieldnames)
-    arrays = tuple(i for i, (name, length) in enumerate(zip(names, c.array_lengths)) if length and name not in chars)
-    # a char array packs as one bytes value, which pymavlink keeps beside the text it shows
-    getter = operator.attrgetter(*(f"_{name}_raw" if name in chars else name for name in names))
-    get = getter if len(names) > 1 else (lambda m: (getter(m),))
-    plan = (c.unpacker, get, arrays, int(c.id), int(c.crc_extra))
-    _PLANS[cls] = plan
-    return plan
+    declared = list(c.fieldnames)
+    parts = []
+    for name, length in zip(c.ordered_fieldnames, c.array_lengths):
+        ref = (f"v[{declared.index(name)}]" if from_values
+               else f"v._{name}_raw" if name in chars else f"v.{name}")
+        parts.append(f"*{ref}" if length and name not in chars else ref)
+    msg_id = int(c.id)
+    src = (f"def framed(v, seq, sysid, compid):\n"
+           f"    p = pack({', '.join(parts)})\n"
+           f"    p = p.rstrip(ZERO) or p[:1]\n"
+           f"    body = body_of(len(p), 0, 0, seq & 255, sysid, compid, {msg_id & 0xFFFF}, {msg_id >> 16}) + p\n"
+           f"    c = crc(body + EXTRA)\n"
+           f"    return STX + body + BYTE[c & 255] + BYTE[c >> 8]\n")
+    scope: dict[str, Any] = {"pack": c.unpacker.pack, "ZERO": b"\x00", "body_of": _BODY.pack, "crc": _crc,
+                             "EXTRA": _BYTE[int(c.crc_extra)], "STX": _BYTE[STX_V2], "BYTE": _BYTE}
+    exec(compile(src, f"<framing of {c.msgname}>", "exec"), scope)  # noqa: S102
+    framed: _Framer = scope["framed"]
+    (_FROM_VALUES if from_values else _FROM_MESSAGE)[cls] = framed
+    return framed
 
 
 def pack_message(msg: Any, seq: int, sysid: int, compid: int) -> bytes:
     """The unsigned MAVLink 2 frame of pymavlink message ``msg`` (what ``msg.pack`` sends from a link
     with this sequence number, system and component)."""
     cls = type(msg)
-    plan = _PLANS.get(cls) or _plan(cls)
-    return _framed(plan, plan[1](msg), seq, sysid, compid)
+    framed = _FROM_MESSAGE.get(cls) or _framer(cls, False)
+    return framed(msg, seq, sysid, compid)
 
 
 class Payload(NamedTuple):
@@ -76,37 +101,8 @@ class Payload(NamedTuple):
         return str(self.cls.msgname)  # type: ignore[attr-defined]
 
 
-_VALUE_PLANS: dict[type, _Plan] = {}
-
-
-def _value_plan(cls: type) -> _Plan:
-    """:func:`_plan` for fields given in declared order: the getter picks them in wire order."""
-    c: Any = cls
-    chars = {name for name, kind in zip(c.fieldnames, c.fieldtypes) if kind == "char"}
-    names = tuple(c.ordered_fieldnames)
-    arrays = tuple(i for i, (name, length) in enumerate(zip(names, c.array_lengths)) if length and name not in chars)
-    getter = operator.itemgetter(*(list(c.fieldnames).index(name) for name in names))
-    get = getter if len(names) > 1 else (lambda v: (getter(v),))
-    plan = (c.unpacker, get, arrays, int(c.id), int(c.crc_extra))
-    _VALUE_PLANS[cls] = plan
-    return plan
-
-
 def pack_payload(p: Payload, seq: int, sysid: int, compid: int) -> bytes:
     """The unsigned MAVLink 2 frame of ``p`` (what ``p.message().pack`` sends from such a link)."""
-    plan = _VALUE_PLANS.get(p.cls) or _value_plan(p.cls)
-    return _framed(plan, plan[1](p.values), seq, sysid, compid)
-
-
-def _framed(plan: _Plan, values: tuple[Any, ...], seq: int, sysid: int, compid: int) -> bytes:
-    unpacker, _, arrays, msg_id, crc_extra = plan
-    if arrays:
-        flat: list[Any] = []
-        start = 0
-        for i in arrays:
-            flat.extend(values[start:i])
-            flat.extend(values[i])
-            start = i + 1
-        flat.extend(values[start:])
-        values = tuple(flat)
-    return frame(msg_id, crc_extra, unpacker.pack(*values), seq, sysid, compid)
+    cls = p.cls
+    framed = _FROM_VALUES.get(cls) or _framer(cls, True)
+    return framed(p.values, seq, sysid, compid)

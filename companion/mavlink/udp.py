@@ -13,7 +13,9 @@ or one step of a task: the simulated vehicle's steps between two waits) leave to
 datagrams of at most that many bytes, when the loop next runs its ready callbacks, as
 ArduPilot's UDP links carry several whole frames per packet (``AP_HAL`` packetise). Each
 datagram costs its receiver an event-loop wake-up, a ``recvfrom`` and a queue round, whatever
-it carries; the frames and their order are the same.
+it carries; the frames and their order are the same. An owner that flushes itself at the end of
+each stretch (``flush_soon=False``: the simulated vehicle, before each wait) spares the loop that
+callback; what the reader's own callback sent then leaves at its end.
 """
 
 from __future__ import annotations
@@ -30,11 +32,14 @@ MAX_DATAGRAM = 65535
 class UdpEndpoint:
     def __init__(self, on_datagram: Callable[[bytes, tuple[str, int]], None],
                  on_error: Callable[[OSError], None] | None = None, max_batch: int = 512,
-                 coalesce_bytes: int = 0) -> None:
+                 coalesce_bytes: int = 0, flush_soon: bool = True) -> None:
         self.on_datagram = on_datagram
         self.on_error = on_error
         self.max_batch = max_batch
         self.coalesce_bytes = coalesce_bytes
+        self.flush_soon = flush_soon
+        """coalesced frames leave when the loop next runs its callbacks (False: at :meth:`flush`, which
+        the owner calls at the end of each stretch of its own, and at the end of the reader's callback)"""
         self.send_dropped = 0
         """datagrams not sent because the socket's send buffer was full"""
         self._outbox: dict[tuple[str, int], bytearray] = {}
@@ -68,12 +73,14 @@ class UdpEndpoint:
             try:
                 data, addr = sock.recvfrom(MAX_DATAGRAM)
             except (BlockingIOError, InterruptedError):
-                return
+                break
             except OSError as exc:  # e.g. an ICMP port-unreachable reported on the socket
                 if self.on_error is not None:
                     self.on_error(exc)
                 continue
             self.on_datagram(data, addr)
+        if self._outbox and not self.flush_soon:  # what the datagrams' handlers sent
+            self.flush()
 
     def sendto(self, data: bytes, addr: tuple[str, int]) -> None:
         """``data`` (whole frames) to ``addr``: now, or with the frames that follow it in this stretch
@@ -86,7 +93,7 @@ class UdpEndpoint:
         outbox = self._outbox
         pending = outbox.get(addr)
         if pending is None:
-            if not outbox and self._loop is not None:
+            if not outbox and self._loop is not None and self.flush_soon:
                 self._loop.call_soon(self.flush)
             outbox[addr] = bytearray(data)
         elif len(pending) + len(data) > self.coalesce_bytes:

@@ -336,18 +336,19 @@ class MavlinkServer:
         t = self.ap.t
         if self._param_queue:
             self._send_param_lists()
-        if t + 1e-9 < self._next_due or self.transport is None:
+        soon = t + 1e-9
+        if soon < self._next_due or self.transport is None:
             return
         now = time.monotonic()
         table = self.peers
         plan: list[tuple[Peer, list[int]]] = []
         for peer in table:
-            if t + 1e-9 < peer.next_due:
+            if soon < peer.next_due:
                 continue
             shared = not table.protected(peer, now)
             ids: list[int] = []
             for msg_id, due in peer.due.items():
-                if t + 1e-9 < due:
+                if soon < due:
                     continue
                 if shared and not self._newcomer_streams.take(now):
                     # the newcomers' share is spent: this one waits 0.1 s, then gets one of each
@@ -358,29 +359,38 @@ class MavlinkServer:
             else:
                 peer.next_due = math.inf  # set below, once its streams are sent
             plan.append((peer, ids))
-        # each message encoded once, in one order for every peer, and packed for each peer in its own
-        # sequence (signed frames leave in the order they were signed: none looks like a replay)
-        order = list(dict.fromkeys(m for peer, ids in sorted(plan, key=lambda p: p[0].addr != table.controller)
-                                   for m in ids))
+        # each message encoded once, in one order for every peer (the controller's first), and packed for
+        # each peer in its own sequence (signed frames leave in the order they were signed: none looks
+        # like a replay)
+        if len(plan) == 1:
+            order = plan[0][1]
+        else:
+            order = list(dict.fromkeys(m for peer, ids in sorted(plan, key=lambda p: p[0].addr != table.controller)
+                                       for m in ids))
+            rank = {m: i for i, m in enumerate(order)}
+            plan = [(peer, sorted(ids, key=rank.__getitem__)) for peer, ids in plan]
         enc = self.telemetry.encoders
         encoded: dict[int, Message | None] = {}
+        made = 0
         for msg_id in order:
             encoded[msg_id] = msg = enc[msg_id]()
-            if msg is not None:
-                self.stats["sent"] += 1
-        rank = {m: i for i, m in enumerate(order)}
+            made += msg is not None
+        self.stats["sent"] += made
         attitude = mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION
+        sendto, pack = self.transport.sendto, self._pack
         for peer, ids in plan:
-            for msg_id in sorted(ids, key=rank.__getitem__):
+            addr = peer.addr
+            for msg_id in ids:
                 msg = encoded[msg_id]
                 if msg is not None:  # None: nothing valid to say now (e.g. no position)
-                    self._deliver((peer,), msg, count=False)
+                    sendto(pack(msg, peer), addr)
                     if msg_id == attitude:
                         peer.state_sent_ms = self.telemetry.time_boot_ms
                 peer.sent(msg_id, t)
             if peer.next_due == math.inf:
                 peer.next_due = min(peer.due.values(), default=math.inf)
-        self._next_due = min((p.next_due for p in table), default=math.inf)
+        self._next_due = (plan[0][0].next_due if len(plan) == len(table) == 1
+                          else min((p.next_due for p in table), default=math.inf))
 
     def set_interval(self, msg_id: int, interval_s: float | None, peer: Peer | None = None) -> None:
         """Stream ``msg_id`` to ``peer`` (None: every peer) every ``interval_s`` simulated seconds
@@ -810,7 +820,9 @@ class MavlinkServer:
     # --- running -------------------------------------------------------------------------
 
     async def start(self) -> None:
-        endpoint = UdpEndpoint(self.datagram_received, self._socket_error, coalesce_bytes=DATAGRAM_BYTES)
+        # the loop's own passes flush before each wait (:meth:`run`), the reader's callback at its end
+        endpoint = UdpEndpoint(self.datagram_received, self._socket_error, coalesce_bytes=DATAGRAM_BYTES,
+                               flush_soon=False)
         endpoint.open(self.config.listen)
         self.transport = endpoint
         self.peers.seq_salt = endpoint.sockname[1]
@@ -845,6 +857,7 @@ class MavlinkServer:
                         self._repeat_state()
                     pacing.resume(now, ap.t)
                     self._setpoint_arrived.clear()
+                    self._flush()
                     with contextlib.suppress(TimeoutError):  # the datagram handler sets the event
                         async with asyncio.timeout(REPEAT_WALL_S):  # no task per wait, as wait_for makes
                             await self._setpoint_arrived.wait()
@@ -859,6 +872,7 @@ class MavlinkServer:
                     steps += n
                     if steps >= 50:
                         steps = 0
+                        self._flush()
                         await asyncio.sleep(0)  # let datagrams in during long catch-ups
                 if self.ap.messages:
                     self._drain_messages()
@@ -867,14 +881,21 @@ class MavlinkServer:
                     last_expire = now
                 pause = pacing.sleep_s(time.monotonic(), ap.t, step.locked)
                 if not (step.locked and pacing.late(ap.t, ap.follows_stream)):
+                    self._flush()
                     await asyncio.sleep(pause)
-                # else at the lockstep stop: straight to the wait for the next setpoint (which yields)
+                # else at the lockstep stop: straight to the wait for the next setpoint (which yields; the
+                # state at the stop leaves with this pass's frames)
         finally:
             self.run_wall_s = time.monotonic() - pacing.run_wall0
             self.run_cpu = {"cpu_s": round(time.process_time() - cpu0, 3), "sim_s": round(ap.t - t0, 3)}
             if self.transport is not None:
                 self.transport.close()
                 self.transport = None
+
+    def _flush(self) -> None:
+        """What this pass of the loop sent, out now (coalesced), before it waits."""
+        if self.transport is not None:
+            self.transport.flush()
 
     run_wall_s: float | None = None
     run_cpu: dict[str, float] | None = None

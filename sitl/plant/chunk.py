@@ -141,7 +141,8 @@ _SF_SUM, _SF_COUNT = _sf_columns()
 
 def write_specific_force_sum(row: NDArray[np.float64], sf_sum: list[float], count: int) -> None:
     """The accelerometer's running sum and count into a state row (the position loop restarts them)."""
-    row[_SF_SUM:_SF_SUM + 3] = sf_sum
+    i = _SF_SUM  # element by element: a slice assigned from a list costs a conversion
+    row[i], row[i + 1], row[i + 2] = sf_sum
     row[_SF_COUNT] = count
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import operator
 from typing import Sequence
 
 import numpy as np
@@ -209,7 +210,7 @@ class SimVehicle:
             return 0
         key = (self.scenario, self.plant.vehicle, self.plant.airframe, self.wind, self.forces, self.torques,
                self.onboard, self.onboard.controller.const(self.dt), self.estimator.gains, self.imu)
-        if len(key) != len(self._chunk_key) or any(a is not b for a, b in zip(key, self._chunk_key)):
+        if len(key) != len(self._chunk_key) or not all(map(operator.is_, key, self._chunk_key)):
             self._chunk_key, self._chunk_const = key, chunk.const_rows(chunk.const_of(self))
         row = self._row
         if row is None or self._row_mark != self._mark():
