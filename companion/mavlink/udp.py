@@ -32,8 +32,11 @@ MAX_DATAGRAM = 65535
 class UdpEndpoint:
     def __init__(self, on_datagram: Callable[[bytes, tuple[str, int]], None],
                  on_error: Callable[[OSError], None] | None = None, max_batch: int = 512,
-                 coalesce_bytes: int = 0, flush_soon: bool = True) -> None:
+                 coalesce_bytes: int = 0, flush_soon: bool = True,
+                 after_batch: Callable[[], None] | None = None) -> None:
         self.on_datagram = on_datagram
+        self.after_batch = after_batch
+        """called once the datagrams waiting at a wake-up have all been handed over"""
         self.on_error = on_error
         self.max_batch = max_batch
         self.coalesce_bytes = coalesce_bytes
@@ -79,6 +82,8 @@ class UdpEndpoint:
                     self.on_error(exc)
                 continue
             self.on_datagram(data, addr)
+        if self.after_batch is not None:
+            self.after_batch()
         if self._outbox and not self.flush_soon:  # what the datagrams' handlers sent
             self.flush()
 

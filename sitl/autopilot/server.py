@@ -51,7 +51,7 @@ from ..percentiles import percentiles_ms
 from .events import catalogue, event_id
 from .guard import StepGuard
 from .logic import Autopilot, MavResult, Severity
-from .pacing import REPEAT_WALL_S, Wait, WorldPacing
+from .pacing import REPEAT_WALL_S, Pass, Wait, WorldPacing
 from .shaping import NAN3, TrajectoryTarget, body_to_ned
 from .parameters import ParamTable, build_parameters
 from .peers import MAX_PEERS, REQUESTS_PER_S, Address, Bucket, InflowGuard, Peer, PeerTable
@@ -197,6 +197,16 @@ class MavlinkServer:
         self._next_due = 0.0
         self._last_warning: dict[str, float] = {}
         self._setpoint_arrived = asyncio.Event()
+        self._waiting = False
+        """the run task waits for a setpoint (:meth:`_after_datagrams` may step the world)"""
+        self._pending_pass: tuple[Pass, float] | None = None
+        """a pass that yielded in a catch-up: its plan and wall clock (the next pass goes on with it)"""
+        self._setpoint_new = False
+        """a setpoint arrived while the run task waited (:meth:`_after_datagrams` acts on it)"""
+        self._pass_error: Exception | None = None
+        self._stop: asyncio.Event | None = None
+        self._duration_s: float | None = None
+        self._last_expire = 0.0
         self._forwarded: dict[tuple[str, int], tuple[float, int]] = {}
         self._event_seq = 0
         self._catalogue = catalogue()
@@ -613,7 +623,10 @@ class MavlinkServer:
             self.pacing.setpoint(stamp_t)
         else:
             self.pacing.setpoint(self.ap.t)
-        self._setpoint_arrived.set()
+        if self._waiting:
+            self._setpoint_new = True  # the world's wait ends once the datagrams are read (_after_datagrams)
+        else:
+            self._setpoint_arrived.set()
 
     def _set_position_target_global(self, msg: Any) -> None:
         """SET_POSITION_TARGET_GLOBAL_INT (PX4 flies it; MAVSDK's set_position_global): refused, said once
@@ -822,7 +835,7 @@ class MavlinkServer:
     async def start(self) -> None:
         # the loop's own passes flush before each wait (:meth:`run`), the reader's callback at its end
         endpoint = UdpEndpoint(self.datagram_received, self._socket_error, coalesce_bytes=DATAGRAM_BYTES,
-                               flush_soon=False)
+                               flush_soon=False, after_batch=self._after_datagrams)
         endpoint.open(self.config.listen)
         self.transport = endpoint
         self.peers.seq_salt = endpoint.sockname[1]
@@ -837,60 +850,106 @@ class MavlinkServer:
 
     async def run(self, stop: asyncio.Event, duration_s: float | None = None) -> None:
         """Step as :class:`~sitl.autopilot.pacing.WorldPacing` says until ``stop`` is set (or
-        ``duration_s`` simulated)."""
+        ``duration_s`` simulated): one :meth:`_pass` after another, each followed by what it asks
+        (a sleep, or a wait for the next setpoint that :meth:`_after_datagrams` may end by stepping
+        the world itself)."""
         if self.transport is None:
             await self.start()
         ap, pacing = self.ap, self.pacing
         pacing.start(time.monotonic(), ap.t)
         cpu0, t0 = time.process_time(), ap.t
-        last_expire = pacing.run_wall0
+        self._last_expire = pacing.run_wall0
+        self._stop, self._duration_s = stop, duration_s
         try:
             while not stop.is_set():
                 if duration_s is not None and ap.t >= duration_s:
                     break
-                now = time.monotonic()
-                wait = pacing.wait(now, ap.t, ap.follows_stream)
-                if wait is not Wait.RUN:
-                    if wait is Wait.BEGIN:
-                        self._send_state_now()
-                    elif wait is Wait.REPEAT:
-                        self._repeat_state()
-                    pacing.resume(now, ap.t)
-                    self._setpoint_arrived.clear()
-                    self._flush()
-                    with contextlib.suppress(TimeoutError):  # the datagram handler sets the event
-                        async with asyncio.timeout(REPEAT_WALL_S):  # no task per wait, as wait_for makes
-                            await self._setpoint_arrived.wait()
-                    continue
-                step = pacing.plan(now, ap.t, ap.follows_stream)
-                steps = 0
-                while ap.t + 0.5 * ap.dt <= step.target_t:
-                    n = self.chunk_steps(step.target_t)
-                    self.step(n)
-                    if pacing.late(ap.t, ap.follows_stream):
-                        break  # catching up, too: never more than the wait ahead of the companion
-                    steps += n
-                    if steps >= 50:
-                        steps = 0
-                        self._flush()
-                        await asyncio.sleep(0)  # let datagrams in during long catch-ups
-                if self.ap.messages:
-                    self._drain_messages()
-                if now - last_expire > 1.0:
-                    self._expire_peers()
-                    last_expire = now
-                pause = pacing.sleep_s(time.monotonic(), ap.t, step.locked)
-                if not (step.locked and pacing.late(ap.t, ap.follows_stream)):
-                    self._flush()
-                    await asyncio.sleep(pause)
-                # else at the lockstep stop: straight to the wait for the next setpoint (which yields; the
-                # state at the stop leaves with this pass's frames)
+                after = self._pass()
+                if after is None:
+                    self._waiting = True
+                    try:
+                        with contextlib.suppress(TimeoutError):  # a datagram's callback sets the event
+                            async with asyncio.timeout(REPEAT_WALL_S):  # no task per wait, as wait_for makes
+                                await self._setpoint_arrived.wait()
+                    finally:
+                        self._waiting = False
+                    if self._pass_error is not None:
+                        raise self._pass_error
+                elif after >= 0.0:
+                    await asyncio.sleep(after)
         finally:
             self.run_wall_s = time.monotonic() - pacing.run_wall0
             self.run_cpu = {"cpu_s": round(time.process_time() - cpu0, 3), "sim_s": round(ap.t - t0, 3)}
             if self.transport is not None:
                 self.transport.close()
                 self.transport = None
+
+    _AT_ONCE = -1.0
+    """:meth:`_pass`: the next pass follows at once (the world stopped where it waits for a setpoint)"""
+
+    def _pass(self) -> float | None:
+        """One pass of the world's loop: wait (None: for a setpoint, the state at a lockstep stop sent),
+        or step to where :meth:`WorldPacing.plan` says, then the wall seconds to sleep before the next
+        pass (:data:`_AT_ONCE`: none, not even a yield). A catch-up yields every 50 steps (0.0) and the
+        next pass goes on to the same target."""
+        ap, pacing = self.ap, self.pacing
+        if self._pending_pass is None:
+            now = time.monotonic()
+            wait = pacing.wait(now, ap.t, ap.follows_stream)
+            if wait is not Wait.RUN:
+                if wait is Wait.BEGIN:
+                    self._send_state_now()
+                elif wait is Wait.REPEAT:
+                    self._repeat_state()
+                pacing.resume(now, ap.t)
+                self._setpoint_arrived.clear()
+                self._flush()
+                return None
+            self._pending_pass = (pacing.plan(now, ap.t, ap.follows_stream), now)
+        step, now = self._pending_pass
+        steps = 0
+        while ap.t + 0.5 * ap.dt <= step.target_t:
+            n = self.chunk_steps(step.target_t)
+            self.step(n)
+            if pacing.late(ap.t, ap.follows_stream):
+                break  # catching up, too: never more than the wait ahead of the companion
+            steps += n
+            if steps >= 50:
+                self._flush()
+                return 0.0  # let datagrams in during long catch-ups
+        self._pending_pass = None
+        if ap.messages:
+            self._drain_messages()
+        if now - self._last_expire > 1.0:
+            self._expire_peers()
+            self._last_expire = now
+        pause = pacing.sleep_s(time.monotonic(), ap.t, step.locked)
+        if step.locked and pacing.late(ap.t, ap.follows_stream):
+            # at the lockstep stop: straight to the wait for the next setpoint (the state at the stop
+            # leaves with this pass's frames)
+            return self._AT_ONCE
+        self._flush()
+        return pause
+
+    def _after_datagrams(self) -> None:
+        """Lockstep: a setpoint that ends the world's wait steps the world here, in the callback that
+        read it, to the next stop and its state sent, where the run task would be woken to do the
+        same (a pass of the event loop and a task switch less per setpoint). Anything else (a sleep
+        to keep, the end of the run, an error) goes back to the task."""
+        if not self._setpoint_new:
+            return
+        self._setpoint_new = False
+        stop, duration_s = self._stop, self._duration_s
+        try:
+            while stop is not None and not stop.is_set() and (duration_s is None or self.ap.t < duration_s):
+                after = self._pass()
+                if after is None:
+                    return  # waiting again; the run task's wait goes on
+                if after >= 0.0:
+                    break
+        except Exception as exc:  # the run task raises it, as it would have raised it itself
+            self._pass_error = exc
+        self._setpoint_arrived.set()
 
     def _flush(self) -> None:
         """What this pass of the loop sent, out now (coalesced), before it waits."""
