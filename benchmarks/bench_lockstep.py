@@ -110,7 +110,10 @@ def fly_once(out: Path, engine: str, profile: Path | None = None, timed: Path | 
     prefix: tuple[str, ...] = ("-m", "cProfile", "-o", str(profile)) if profile else ()
     if timed:
         prefix = (str(ROOT / "benchmarks" / "timed_vehicle.py"), str(timed))
-    args = ("--flavour", "paper", "--lockstep") + (("--engine", engine) if baseline is None else ())
+    # at the 1000x cap a companion's 10 ms between arming and its take-off are PX4's 10 s pre-flight
+    # auto-disarm (a loaded host refused the take-off): 120 s here, the flight is what is measured
+    args = ("--flavour", "paper", "--lockstep", "--param", "COM_DISARM_PRFLT=120") + (
+        ("--engine", engine) if baseline is None else ())
     env = None if baseline is None else {**os.environ, "PYTHONPATH": str(baseline)}
     vehicle = VehicleProcess(*args, speedup=1000.0, interpreter_args=prefix, env=env, cwd=baseline)
     child0, self0, w0 = _cpu(resource.RUSAGE_CHILDREN), _cpu(resource.RUSAGE_SELF), time.monotonic()

@@ -4,12 +4,14 @@
     python benchmarks/ci_durations.py ci.log
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
-``make test`` prints four pytest summaries in order, one run after the other (tests/run_tiers.sh):
-everything but the firmware; PX4 SIH and its clients, one at a time; PX4 on our plant and MAVSDK's
-examples on SIH, one at a time; ArduPilot's tier. This prints each one's count and wall time and,
-where the log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run.
-``--readme`` replaces the sentence between README's ``<!-- ci-durations -->`` markers with them,
-so that no duration in the README is typed by hand.
+``make test`` prints four pytest runs, each under its ``=== name`` line (tests/run_tiers.sh):
+everything but the firmware; then, in two lanes side by side, PX4 SIH and its clients followed by
+ArduPilot's tier, and PX4 on our plant with MAVSDK's examples on SIH; and a line per run, "NAME
+ended after T s", T counted from the suite's start. This prints each run's count and wall time,
+the real autopilots' phase (from the end of the first run to the end of the last) and, where the
+log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run. ``--readme`` replaces
+the sentence between README's ``<!-- ci-durations -->`` markers with them, so that no duration
+in the README is typed by hand.
 """
 
 from __future__ import annotations
@@ -23,29 +25,60 @@ from pathlib import Path
 MARKERS = ("<!-- ci-durations -->", "<!-- /ci-durations -->")
 SUMMARY = re.compile(r"^=*\s*(?:(\d+) failed, )?(\d+) passed.*? in ([\d.]+)s")
 TOTAL = re.compile(r"^(?:real\s+(\d+)m([\d.]+)s|EXIT \d+ after (\d+) s)")
+HEADER = re.compile(r"^=== (.+)$")
+ENDED = re.compile(r"^(.+) ended after (\d+) s \(exit \d+\)$")
+RUNS = {"main": ("everything but the firmware", "everything but the firmware"),
+        "px4": ("PX4 SIH", "PX4 SIH, one at a time"),
+        "examples": ("PX4 on our plant", "PX4 on the plant and the examples"),
+        "ap": ("ArduCopter", "ArduPilot's tier")}
+"""key: (how its ``===`` line begins, the name printed)"""
+
+Run = tuple[int, int, float]
+"""(failed, passed, seconds) of one pytest run"""
 
 
-def durations(text: str) -> tuple[list[tuple[int, int, float]], float | None]:
-    """(failed, passed, seconds) of each pytest summary in order, and the whole run [s] if logged."""
-    runs, total = [], None
+def _key(name: str) -> str | None:
+    return next((k for k, (start, _) in RUNS.items() if name.startswith(start)), None)
+
+
+def durations(text: str) -> tuple[dict[str, Run], dict[str, int], float | None]:
+    """Each run's summary by key (:data:`RUNS`), when each ended [s from the suite's start], and the
+    whole run [s] if logged."""
+    runs: dict[str, Run] = {}
+    ended: dict[str, int] = {}
+    total, current = None, None
     for line in text.splitlines():
-        m = SUMMARY.match(line.strip())
-        if m:
-            runs.append((int(m.group(1) or 0), int(m.group(2)), float(m.group(3))))
-        t = TOTAL.match(line.strip())
+        line = line.strip()
+        h = HEADER.match(line)
+        if h:
+            current = _key(h.group(1))
+        m = SUMMARY.match(line)
+        if m and current is not None:
+            runs[current] = (int(m.group(1) or 0), int(m.group(2)), float(m.group(3)))
+        e = ENDED.match(line)
+        if e and _key(e.group(1)) is not None:
+            ended[_key(e.group(1))] = int(e.group(2))  # type: ignore[index]
+        t = TOTAL.match(line)
         if t:
             total = float(t.group(3)) if t.group(3) else 60.0 * int(t.group(1)) + float(t.group(2))
-    return runs, total
+    return runs, ended, total
 
 
-def sentence(runs: list[tuple[int, int, float]], total: float, commit: str, date: str) -> str:
-    """README's words for one fresh-clone run (four summaries, the whole run)."""
-    (_, main, main_s), (_, px4, px4_s), (_, examples, examples_s), (_, ap, ap_s) = runs
+def firmware_phase_s(ended: dict[str, int]) -> int | None:
+    """Wall seconds from the end of the first run to the end of the last (the two lanes)."""
+    if "main" not in ended or len(ended) < 2:
+        return None
+    return max(ended.values()) - ended["main"]
+
+
+def sentence(runs: dict[str, Run], firmware_s: int, total: float, commit: str, date: str) -> str:
+    """README's words for one fresh-clone run (four summaries, the real autopilots' phase, the whole run)."""
+    (main, main_s), (px4, px4_s), (ex, ex_s), (ap, ap_s) = (runs[k][1:] for k in ("main", "px4", "examples", "ap"))
     return (f"From a fresh clone with both builds found (no pip cache, no compiled-kernel cache; "
             f"`.ci/run`, {date}, commit {commit}): {total / 60:.1f} minutes in all ({total:.0f} s) — install "
-            f"and lint, {main} tests in {main_s:.0f} s, {px4} PX4 SIH tests one at a time in {px4_s:.0f} s, "
-            f"{examples} more (PX4 on our plant, MAVSDK's examples) one at a time in {examples_s:.0f} s, "
-            f"{ap} ArduPilot tests in {ap_s:.0f} s.")
+            f"and lint, {main} tests in {main_s:.0f} s, then the real autopilots in {firmware_s} s in two lanes "
+            f"side by side: {px4} PX4 SIH tests one at a time ({px4_s:.0f} s) then {ap} ArduPilot tests "
+            f"({ap_s:.0f} s), and {ex} more (PX4 on our plant, MAVSDK's examples) one at a time ({ex_s:.0f} s).")
 
 
 def write_readme(readme: Path, text: str) -> None:
@@ -64,19 +97,20 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--commit", default="?", help="the commit the run tested (README states it)")
     ap.add_argument("--date", default=time.strftime("%Y-%m-%d", time.gmtime()))
     args = ap.parse_args(argv)
-    runs, total = durations(args.log.read_text(errors="replace"))
-    names = ["everything but the firmware", "PX4 SIH, one at a time", "PX4 on the plant and the examples",
-             "ArduPilot's tier"]
-    for name, (failed, passed, seconds) in zip(names, runs):
-        print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")
-    if len(runs) == 4:
-        print(f"pytest in all: {sum(r[2] for r in runs):.0f} s")
+    runs, ended, total = durations(args.log.read_text(errors="replace"))
+    for key, (_, name) in RUNS.items():
+        if key in runs:
+            failed, passed, seconds = runs[key]
+            print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")
+    firmware_s = firmware_phase_s(ended)
+    if firmware_s is not None:
+        print(f"the real autopilots, two lanes side by side: {firmware_s} s")
     if total is not None:
         print(f"in all: {total:.0f} s ({total / 60:.1f} minutes)")
     if args.readme is not None:
-        if len(runs) != 4 or total is None or any(failed for failed, _, _ in runs):
-            raise SystemExit("--readme: the log must hold four passing summaries and the whole run's time")
-        write_readme(args.readme, sentence(runs, total, args.commit, args.date))
+        if len(runs) != 4 or firmware_s is None or total is None or any(r[0] for r in runs.values()):
+            raise SystemExit("--readme: the log must hold four passing runs, when each ended, and the whole run's time")
+        write_readme(args.readme, sentence(runs, firmware_s, total, args.commit, args.date))
         print(f"written to {args.readme}")
     return 0
 

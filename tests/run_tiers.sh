@@ -49,8 +49,9 @@ if [ "$main_rc" -ne 2 ]; then
       run "$out/a.log" "ArduCopter SITL, three at a time" -n 3 --dist loadgroup -m "firmware and ardupilot" \
         --durations=10
   } &
-  run "$out/b.log" "PX4 on our plant, and MAVSDK's examples on SIH, one at a time" -m "firmware and not ardupilot" \
-    --durations=10 $PX4_ALONE &
+  # PX4 instances 5-9 for this lane (the other's PX4 takes 0-4: tests/helpers/firmware.py)
+  FIRMWARE_WORKERS_BEFORE=1 run "$out/b.log" "PX4 on our plant, and MAVSDK's examples on SIH, one at a time" \
+    -m "firmware and not ardupilot" --durations=10 $PX4_ALONE &
   wait
   cat "$out/a.log" "$out/b.log"
 fi

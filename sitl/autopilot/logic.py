@@ -530,17 +530,18 @@ class Autopilot:
         use_thrust = not type_mask & mavlink.ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE
         use_att = not type_mask & mavlink.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
         reason = None
+        n = math.nan
         if use_att:
-            n = math.sqrt(sum(c * c for c in q)) if all(math.isfinite(c) for c in q) else math.nan
+            q0, q1, q2, q3 = q
+            n = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)  # not finite if any part is not
             if not math.isfinite(n):
                 reason = "non-finite quaternion"
             elif abs(n - 1.0) > 1e-3:
                 reason = "non-unit quaternion"
-        if reason is None and not all(math.isfinite(w) for w, u in zip(body_rates_rad_s, use_rates) if u):
+        used = [w for w, u in zip(body_rates_rad_s, use_rates) if u]
+        if reason is None and not all(map(math.isfinite, used)):
             reason = "non-finite body rate"
-        if reason is None and any(
-            abs(w) > self.params.max_rate_setpoint_rad_s for w, u in zip(body_rates_rad_s, use_rates) if u
-        ):
+        if reason is None and used and max(map(abs, used)) > self.params.max_rate_setpoint_rad_s:
             reason = "body rate out of range"
         if reason is None and use_thrust and not (math.isfinite(thrust) and 0.0 <= thrust <= 1.0):
             reason = "thrust outside [0, 1]"
@@ -556,7 +557,6 @@ class Autopilot:
         self.guided_climb_rate_m_s = climb_rate_m_s(thrust) if use_thrust else 0.0
         rates = tuple(w if u else 0.0 for w, u in zip(body_rates_rad_s, use_rates))
         if use_att:
-            n = math.sqrt(sum(c * c for c in q))
             q_d = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
             if not self.params.paper_inner_loop and not self.rules.attitude_with_rates:
                 if use_rates[0] and use_rates[1]:

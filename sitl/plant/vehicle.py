@@ -208,6 +208,7 @@ class SimVehicle:
 
         if not chunk.fits(self, steps):
             return 0
+        mon = self.imu_monitor
         key = (self.scenario, self.plant.vehicle, self.plant.airframe, self.wind, self.forces, self.torques,
                self.onboard, self.onboard.controller.const(self.dt), self.estimator.gains, self.imu)
         if len(key) != len(self._chunk_key) or not all(map(operator.is_, key, self._chunk_key)):
@@ -217,11 +218,11 @@ class SimVehicle:
             self._row = row = chunk.state_row(chunk.state_of(self), row)
         else:  # the position loop read the accelerometer's mean since, and restarted it
             chunk.write_specific_force_sum(row, self._sf_sum, self._sf_count)
-        mon = self.imu_monitor
-        limits = (mon.max_gyro_rad_s, mon.max_accel_m_s2) if mon is not None else (math.inf, math.inf)
+        max_gyro, max_accel = (mon.max_gyro_rad_s, mon.max_accel_m_s2) if mon is not None else (math.inf, math.inf)
+        const, forces, torques = self._chunk_const
         try:
-            done = chunk.advance_compiled(*self._chunk_const, row, setpoint, self.motors_on, self.extra_force_ned_n,
-                                          self.extra_torque_nm, steps, *limits)
+            done = chunk.advance_compiled(const, forces, torques, row, setpoint, self.motors_on, self.extra_force_ned_n,
+                                          self.extra_torque_nm, steps, max_gyro, max_accel)
         except TypeError:  # a value of a type the kernel was not compiled for: the objects step
             self.chunk_counts["refused"] += 1
             return 0

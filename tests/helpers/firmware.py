@@ -39,10 +39,13 @@ workers; ArduPilot's have no such limit"""
 
 def worker_instance(n: int = 0) -> int:
     """Firmware instance ``n`` (0-4) of this test process: ``make test`` runs the tier several tests
-    at a time, and two firmware instances of one number would share their ports and PX4's lock file."""
+    at a time, and two firmware instances of one number would share their ports and PX4's lock file.
+    ``$FIRMWARE_WORKERS_BEFORE`` shifts a whole pytest run past that many workers' instances: two
+    runs side by side (tests/run_tiers.sh's lanes) then never take the same ones."""
     if not 0 <= n < INSTANCES_PER_WORKER:
         raise ValueError(f"instance {n}: a test process has instances 0-{INSTANCES_PER_WORKER - 1}")
     worker = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw") or 0)
+    worker += int(os.environ.get("FIRMWARE_WORKERS_BEFORE", "0") or 0)
     return n + INSTANCES_PER_WORKER * worker
 
 
