@@ -4,11 +4,13 @@ A UDP datagram carries whole MAVLink frames. Each datagram is parsed on its own,
 parser state, so that a truncated or corrupt one cannot swallow the start of the next; frames
 that fail their CRC (or signature) come back as counts, never as exceptions.
 
-Most datagrams are a few clean frames. Those are cut at their stated lengths and handed to
-pymavlink's ``decode`` (its CRC, its field layout) directly, without its byte-stream state
-machine, which costs as much again per frame. Anything else (a byte that starts no frame, a
-datagram that ends inside one, a frame ``decode`` refuses, pymavlink's own signing check) is
-parsed again from the start by pymavlink's robust parser, which alone decides what is bad.
+Most datagrams are a few clean frames. Those are cut at their stated lengths and decoded one by
+one (:func:`~companion.mavlink.framing.decode_frame`, pymavlink's ``decode`` for unsigned MAVLink 2
+frames in one generated function per message, the same object; pymavlink's own ``decode`` for the
+rest), without pymavlink's byte-stream state machine, which costs as much again per frame.
+Anything else (a byte that starts no frame, a datagram that ends inside one, a frame ``decode``
+refuses, pymavlink's own signing check) is parsed again from the start by pymavlink's robust
+parser, which alone decides what is bad.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from __future__ import annotations
 from typing import Any, NamedTuple
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from .framing import decode_frame
 
 __all__ = ["Parsed", "new_parser", "parse_datagram", "frames"]
 
@@ -80,10 +84,12 @@ def _clean_frames(parser: mavlink.MAVLink, data: bytes) -> list[Any] | None:
         return None
     messages = []
     for frame in cut:
-        try:
-            msg = parser.decode(bytearray(frame))
-        except Exception:  # noqa: BLE001 - the robust parser counts it
-            return None
+        msg = decode_frame(frame)  # the same message as decode's, at a third of the cost (unsigned MAVLink 2)
+        if msg is None:
+            try:
+                msg = parser.decode(bytearray(frame))
+            except Exception:  # noqa: BLE001 - the robust parser counts it
+                return None
         messages.append(msg)
     parser.total_bytes_received += len(data)
     parser.total_packets_received += len(messages)

@@ -6,7 +6,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from companion.mavlink.events import EVENT_CRC_EXTRA, MSG_ID_EVENT, encode_event_frame
-from companion.mavlink.framing import Payload, frame, pack_message, pack_payload
+from companion.mavlink.framing import Payload, decode_frame, frame, pack_message, pack_payload
 
 
 def _value(kind: str, length: int, k: int) -> object:
@@ -48,3 +48,37 @@ def test_trailing_zeros_are_trimmed_to_one_byte_and_the_frame_still_parses():
 def test_the_event_frame_is_the_framing_of_its_payload():
     buf = encode_event_frame(5, 1, 1, 123, 456, 7, 3)
     assert buf == frame(MSG_ID_EVENT, EVENT_CRC_EXTRA, buf[10:-2], 5, 1, 1)
+
+
+@pytest.mark.parametrize("payload", list(_payloads()))
+def test_every_message_of_the_dialect_reads_back_as_pymavlinks_decode_builds_it(payload):
+    """decode_frame's message is decode's: its type, fields, header and the buffers pymavlink keeps."""
+    mav = mavlink.MAVLink(None, srcSystem=7, srcComponent=191)
+    mav.seq = 200
+    buf = payload.message().pack(mav)
+    ours, theirs = decode_frame(buf), mavlink.MAVLink(None).decode(bytearray(buf))
+    assert type(ours) is type(theirs)
+    assert ours.to_dict() == theirs.to_dict()
+    assert vars(ours._header) == vars(theirs._header)
+    for name in ("_msgbuf", "_payload", "_crc", "_signed"):
+        assert getattr(ours, name) == getattr(theirs, name), name
+    assert ours.get_srcSystem() == 7 and ours.get_seq() == 200
+
+
+def test_a_frame_decode_frame_cannot_vouch_for_goes_to_pymavlink():
+    """A bad CRC, a stated length that is not the frame's, a signed frame, MAVLink 1 and an unknown
+    message id: None, so that pymavlink's decode judges them (and raises where they are bad)."""
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    good = mav.heartbeat_encode(6, 8, 0, 0, 0).pack(mav)
+    assert decode_frame(good) is not None
+    bad_crc = good[:-1] + bytes([good[-1] ^ 1])
+    assert decode_frame(bad_crc) is None
+    with pytest.raises(mavlink.MAVError):
+        mavlink.MAVLink(None).decode(bytearray(bad_crc))
+    assert decode_frame(good[:-1]) is None
+    signed = bytes([good[0], good[1], mavlink.MAVLINK_IFLAG_SIGNED]) + good[3:]
+    assert decode_frame(signed) is None
+    v1 = mav.heartbeat_encode(6, 8, 0, 0, 0).pack(mav, force_mavlink1=True)
+    assert decode_frame(v1) is None
+    unknown = frame(0xABCDE, 0, b"\x01", 0, 1, 1)
+    assert decode_frame(unknown) is None
