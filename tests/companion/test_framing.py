@@ -69,7 +69,8 @@ def test_a_frame_decode_frame_cannot_vouch_for_goes_to_pymavlink():
     """A bad CRC, a stated length that is not the frame's, a signed frame, MAVLink 1 and an unknown
     message id: None, so that pymavlink's decode judges them (and raises where they are bad)."""
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-    good = mav.heartbeat_encode(6, 8, 0, 0, 0).pack(mav)
+    beat = (mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE)
+    good = mav.heartbeat_encode(*beat).pack(mav)
     assert decode_frame(good) is not None
     bad_crc = good[:-1] + bytes([good[-1] ^ 1])
     assert decode_frame(bad_crc) is None
@@ -78,7 +79,7 @@ def test_a_frame_decode_frame_cannot_vouch_for_goes_to_pymavlink():
     assert decode_frame(good[:-1]) is None
     signed = bytes([good[0], good[1], mavlink.MAVLINK_IFLAG_SIGNED]) + good[3:]
     assert decode_frame(signed) is None
-    v1 = mav.heartbeat_encode(6, 8, 0, 0, 0).pack(mav, force_mavlink1=True)
+    v1 = mav.heartbeat_encode(*beat).pack(mav, force_mavlink1=True)
     assert decode_frame(v1) is None
     unknown = frame(0xABCDE, 0, b"\x01", 0, 1, 1)
     assert decode_frame(unknown) is None

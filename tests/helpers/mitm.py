@@ -63,16 +63,20 @@ class Mitm:
                     self.client = addr
                     self.back.sendto(data, self.vehicle)
                 elif self.client is not None:
-                    msgs = self._note(data)
-                    if any(m.get_type() in self.drop for m in msgs):  # a datagram may carry several frames
-                        kept = [m for m in msgs if m.get_type() not in self.drop]
-                        self.dropped += len(msgs) - len(kept)
-                        if not kept:
-                            continue
-                        data = b"".join(bytes(m.get_msgbuf()) for m in kept)
                     with self._lock:  # a forged frame is never sent before the genuine one it copies
-                        self.front.sendto(data, self.client)
-                    self.down += 1
+                        self._down(data)
+
+    def _down(self, data: bytes) -> None:
+        """A genuine datagram to the client: noted (the newest of each kind) and sent, minus what is dropped."""
+        msgs = self._note(data)
+        if any(m.get_type() in self.drop for m in msgs):  # a datagram may carry several frames
+            kept = [m for m in msgs if m.get_type() not in self.drop]
+            self.dropped += len(msgs) - len(kept)
+            if not kept:
+                return
+            data = b"".join(bytes(m.get_msgbuf()) for m in kept)
+        self.front.sendto(data, self.client)  # type: ignore[arg-type]
+        self.down += 1
 
     def _note(self, data: bytes) -> list[Any]:
         """Remember the newest of each kind; the messages of this datagram."""
