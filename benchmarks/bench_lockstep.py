@@ -12,7 +12,8 @@ second. The vehicle's *capacity* is the inverse of its CPU per simulated second:
 would fly behind a companion that costs nothing, on another core [issue 15: the bundled MAVLink
 vehicle >= 50x sustained in lockstep].
 
-``--pieces`` flies once more with the companion's pieces timed in place (CPU time of each call,
+``--pieces`` flies each vehicle once more with its pieces timed in place (a ``--baseline`` by its
+own copy of benchmarks/timed_vehicle.py), then once with the companion's pieces timed in place (CPU time of each call,
 ``time.process_time``): parse (datagrams to messages), state (messages into the vehicle state),
 law (the control step: reference, position and attitude laws, guard), encode (setpoints and debug
 values to frames), send (``sendto``), record (the flight's CSV row and .tlog); the rest is the
@@ -108,8 +109,8 @@ def fly_once(out: Path, engine: str, profile: Path | None = None, timed: Path | 
     flies its own vehicle, whatever engine it has); ``profile``/``timed``: the vehicle under cProfile,
     or with its pieces timed (benchmarks/timed_vehicle.py), writing to that file."""
     prefix: tuple[str, ...] = ("-m", "cProfile", "-o", str(profile)) if profile else ()
-    if timed:
-        prefix = (str(ROOT / "benchmarks" / "timed_vehicle.py"), str(timed))
+    if timed:  # a baseline's vehicle is timed by its own copy of the timers, on its own code
+        prefix = (str((baseline or ROOT) / "benchmarks" / "timed_vehicle.py"), str(timed))
     # at the 1000x cap a companion's 10 ms between arming and its take-off are PX4's 10 s pre-flight
     # auto-disarm (a loaded host refused the take-off): 120 s here, the flight is what is measured
     args = ("--flavour", "paper", "--lockstep", "--param", "COM_DISARM_PRFLT=120") + (
@@ -228,10 +229,11 @@ def main() -> None:
                   f"{1 / med['companion_cpu_per_sim_s']:.1f}x)")
         if args.pieces:
             for label, engine, b in vehicles:
-                if b is not None:
-                    continue  # an older vehicle may lack what the timers wrap
-                out = Path(tmp) / f"pieces-{engine}.json"
-                fly_once(Path(tmp) / f"pieces{engine}", engine, timed=out)
+                if b is not None and not (b / "benchmarks" / "timed_vehicle.py").exists():
+                    print(f"\n({label}: no benchmarks/timed_vehicle.py to time its pieces with)")
+                    continue
+                out = Path(tmp) / f"pieces-{engine or 'baseline'}.json"
+                fly_once(Path(tmp) / f"pieces{engine or 'baseline'}", engine, timed=out, baseline=b)
                 vehicle_pieces_table(label, out)
             with timed_pieces() as spent:
                 r = fly_once(Path(tmp) / "pieces", engines[0])

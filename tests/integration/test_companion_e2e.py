@@ -304,7 +304,8 @@ def test_the_square_keeps_its_clean_bounds_on_a_host_that_stalls_both_processes(
     """A host that steals CPU, made repeatable (conftest.Staller, seeded): every 0.08 s on average
     the vehicle, the companion or both are stopped for 10-80 ms of wall time, i.e. up to 0.32 s of
     vehicle time at 4x (every 0.15 s until the lockstep vehicle got faster: the square then took less
-    wall time, and only 12 stalls fell in it where the check below asks for 15). Neither side may run ahead of the other: the vehicle flies at most 50 ms
+    wall time, and only 12 stalls fell in it where the check below asks for 15). Neither side may run
+    ahead of the other: the vehicle flies at most 50 ms
     on a setpoint before it waits (--wait-for-setpoints), and the companion's controller advances
     only by the vehicle time its telemetry shows (a stalled vehicle is not a moving reference). So
     the clean bounds hold (RMS < 5 cm, peak < 15 cm, test_waypoint_mission_tracks_the_reference)
