@@ -53,6 +53,8 @@ class ParamChanges:
         ``keep``)."""
         have = await self.link.get_param(name)
         known = self.record.get(name) is not None
+        if have is None and known:  # it exists: its answers were lost (10 % each way loses all three of a
+            have = await self.link.get_param(name)  # read's in 0.7 % of reads); as many asks again
         if have is None:
             if known:
                 raise LinkError(f"parameter {name}: no answer from the vehicle (it was written earlier in this flight)")
