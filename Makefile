@@ -25,9 +25,8 @@ demo: $(VENV)/.runtime
 experiments: setup
 	$(PY) -m sitl.lab.experiments all --out $(OUT)
 
-# everything but the real autopilots six at a time, then two lanes side by side (PX4 SIH's tests one at
-# a time then ArduPilot's three at a time; PX4 on our plant and MAVSDK's examples one at a time):
-# tests/run_tiers.sh
+# everything but the real autopilots six at a time, then ArduPilot's three at a time beside PX4 on our
+# plant and MAVSDK's examples one at a time, then PX4 SIH's tests one at a time, alone: tests/run_tiers.sh
 # says why. Skipped with the reason where no build is found (docs/autopilots.md)
 test: setup lint
 	PY=$(PY) bash tests/run_tiers.sh

@@ -5,10 +5,10 @@
     python benchmarks/ci_durations.py ci.log --readme README.md --commit abc1234   # and write them there
 
 ``make test`` prints four pytest runs, each under its ``=== name`` line (tests/run_tiers.sh):
-everything but the firmware; then, in two lanes side by side, PX4 SIH and its clients followed by
-ArduPilot's tier, and PX4 on our plant with MAVSDK's examples on SIH; and a line per run, "NAME
-ended after T s", T counted from the suite's start. This prints each run's count and wall time,
-the real autopilots' phase (from the end of the first run to the end of the last) and, where the
+everything but the firmware; then, in two lanes side by side, ArduPilot's tier and PX4 on our plant
+with MAVSDK's examples on SIH; then PX4 SIH and its clients alone; and a line per run, "NAME ended
+after T s", T counted from the suite's start. This prints each run's count and wall time, the real
+autopilots' phase (from the end of the first run to the end of the last) and, where the
 log has it (bash's ``time`` or a line ``EXIT n after T s``), the whole run. ``--readme`` replaces
 the sentence between README's ``<!-- ci-durations -->`` markers with them, so that no duration
 in the README is typed by hand.
@@ -65,7 +65,7 @@ def durations(text: str) -> tuple[dict[str, Run], dict[str, int], float | None]:
 
 
 def firmware_phase_s(ended: dict[str, int]) -> int | None:
-    """Wall seconds from the end of the first run to the end of the last (the two lanes)."""
+    """Wall seconds from the end of the first run to the end of the last (the real autopilots)."""
     if "main" not in ended or len(ended) < 2:
         return None
     return max(ended.values()) - ended["main"]
@@ -76,9 +76,9 @@ def sentence(runs: dict[str, Run], firmware_s: int, total: float, commit: str, d
     (main, main_s), (px4, px4_s), (ex, ex_s), (ap, ap_s) = (runs[k][1:] for k in ("main", "px4", "examples", "ap"))
     return (f"From a fresh clone with both builds found (no pip cache, no compiled-kernel cache; "
             f"`.ci/run`, {date}, commit {commit}): {total / 60:.1f} minutes in all ({total:.0f} s) — install "
-            f"and lint, {main} tests in {main_s:.0f} s, then the real autopilots in {firmware_s} s in two lanes "
-            f"side by side: {px4} PX4 SIH tests one at a time ({px4_s:.0f} s) then {ap} ArduPilot tests "
-            f"({ap_s:.0f} s), and {ex} more (PX4 on our plant, MAVSDK's examples) one at a time ({ex_s:.0f} s).")
+            f"and lint, {main} tests in {main_s:.0f} s, then the real autopilots in {firmware_s} s: {ap} ArduPilot "
+            f"tests ({ap_s:.0f} s) beside {ex} more (PX4 on our plant, MAVSDK's examples) one at a time "
+            f"({ex_s:.0f} s), then {px4} PX4 SIH tests one at a time, alone ({px4_s:.0f} s).")
 
 
 def write_readme(readme: Path, text: str) -> None:
@@ -104,7 +104,7 @@ def main(argv: list[str]) -> int:
             print(f"{name}: {passed} passed{f', {failed} failed' if failed else ''} in {seconds:.0f} s")
     firmware_s = firmware_phase_s(ended)
     if firmware_s is not None:
-        print(f"the real autopilots, two lanes side by side: {firmware_s} s")
+        print(f"the real autopilots (two lanes side by side, then PX4 SIH alone): {firmware_s} s")
     if total is not None:
         print(f"in all: {total:.0f} s ({total / 60:.1f} minutes)")
     if args.readme is not None:

@@ -13,10 +13,6 @@ LOG = """\
 ============================= slowest 25 durations =============================
 889 passed in 363.29s (0:06:03)
 
-=== PX4 SIH and its clients, one at a time
-................                                                         [100%]
-16 passed, 19 deselected in 382.96s (0:06:22)
-
 === ArduCopter SITL, three at a time
 .....................                                                    [100%]
 21 passed, 918 deselected in 399.79s (0:06:39)
@@ -25,10 +21,14 @@ LOG = """\
 .............                                                            [100%]
 13 passed, 13 deselected in 50.31s
 
+=== PX4 SIH and its clients, one at a time
+................                                                         [100%]
+16 passed, 19 deselected in 382.96s (0:06:22)
+
 everything but the firmware ended after 370 s (exit 0)
 PX4 on our plant, and MAVSDK's examples on SIH, one at a time ended after 421 s (exit 0)
-PX4 SIH and its clients, one at a time ended after 754 s (exit 0)
-ArduCopter SITL, three at a time ended after 1155 s (exit 0)
+ArduCopter SITL, three at a time ended after 770 s (exit 0)
+PX4 SIH and its clients, one at a time ended after 1155 s (exit 0)
 EXIT 0 after 1181 s
 """
 
@@ -46,7 +46,7 @@ def test_the_durations_are_read_from_the_four_runs_the_lanes_and_the_whole_run(t
     assert "PX4 SIH, one at a time: 16 passed in 383 s" in r.stdout
     assert "ArduPilot's tier: 21 passed in 400 s" in r.stdout
     assert "PX4 on the plant and the examples: 13 passed in 50 s" in r.stdout
-    assert "the real autopilots, two lanes side by side: 785 s" in r.stdout
+    assert "the real autopilots (two lanes side by side, then PX4 SIH alone): 785 s" in r.stdout
     assert "in all: 1181 s (19.7 minutes)" in r.stdout
 
 
@@ -59,9 +59,9 @@ def test_the_readme_sentence_is_replaced_between_its_markers_and_nothing_else(tm
     assert text.startswith("before\n<!-- ci-durations -->\n") and text.endswith("<!-- /ci-durations -->\nafter\n")
     assert "old words" not in text
     assert ("`.ci/run`, 2026-12-05, commit abc1234): 19.7 minutes in all (1181 s) — install and lint, "
-            "889 tests in 363 s, then the real autopilots in 785 s in two lanes side by side: 16 PX4 SIH tests "
-            "one at a time (383 s) then 21 ArduPilot tests (400 s), and 13 more (PX4 on our plant, MAVSDK's "
-            "examples) one at a time (50 s).") in text
+            "889 tests in 363 s, then the real autopilots in 785 s: 21 ArduPilot tests (400 s) beside 13 more "
+            "(PX4 on our plant, MAVSDK's examples) one at a time (50 s), then 16 PX4 SIH tests one at a time, "
+            "alone (383 s).") in text
 
 
 def test_a_failed_or_partial_run_is_not_written(tmp_path):
