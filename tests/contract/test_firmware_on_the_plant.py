@@ -29,7 +29,7 @@ from companion.mavlink.params import PLANT_COMPID
 from companion.vehicle_process import FirmwareVehicle
 from helpers.firmware import ArduCopterSitl, Px4Sih, find_arducopter, find_px4, worker_instance
 
-from .conftest import Target, latest, stream, wait
+from .conftest import Target, latest, stream, stream_until, wait
 from .test_contract import (_fast_streams, _fly_and_record, _guided_airborne, _hover_throttle, _roll, _set_param,
                             armable, command, heartbeat)
 
@@ -136,10 +136,23 @@ def test_px4_hovers_at_its_airframes_throttle_holds_its_point_and_follows_a_roll
     hover = px4_on.hover_physics
     level = (1.0, 0.0, 0.0, 0.0)
     stream(m, px4_on.sysid, 1.0, level, hover)
-    m.mav.command_long_send(px4_on.sysid, 1, mavlink.MAV_CMD_DO_SET_MODE, 0,
-                            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, *PX4_MODES["OFFBOARD"], 0, 0, 0, 0)  # OFFBOARD
+    offboard = px4_custom_mode("OFFBOARD")
+
+    def in_offboard(msg) -> bool:  # type: ignore[no-untyped-def]
+        return (msg.get_type() == "HEARTBEAT" and msg.get_srcComponent() == 1 and msg.autopilot != 8
+                and msg.custom_mode == offboard)
+    # the mode command again each second of streaming until PX4 says OFFBOARD, as MAVLink's command
+    # protocol sends it (sent once, PX4 on the plant stayed in POSCTL beside ArduPilot's tier: CI of 59b597c)
+    switched = False
+    for confirmation in range(4):
+        m.mav.command_long_send(px4_on.sysid, 1, mavlink.MAV_CMD_DO_SET_MODE, confirmation,
+                                mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, *PX4_MODES["OFFBOARD"], 0, 0, 0, 0)
+        if stream_until(m, px4_on.sysid, level, hover, in_offboard, 1.0):
+            switched = True
+            break
+    assert switched, "PX4 on the plant never reported OFFBOARD"
     stream(m, px4_on.sysid, 0.5, level, hover)
-    assert heartbeat(m).custom_mode == px4_custom_mode("OFFBOARD")
+    assert heartbeat(m).custom_mode == offboard
     step = (math.cos(math.radians(5.0)), math.sin(math.radians(5.0)), 0.0, 0.0)
     t_step = latest(m, "ATTITUDE").time_boot_ms
     rolls: list[tuple[float, float]] = []
