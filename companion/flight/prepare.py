@@ -51,10 +51,10 @@ class ParamChanges:
         refuses the value, or says nothing about a parameter this flight has already written (it
         exists: the answers were lost). ``keep``: the value stays after the flight (a mission step's
         ``keep``)."""
-        have = await self.link.get_param(name)
         known = self.record.get(name) is not None
-        if have is None and known:  # it exists: its answers were lost (10 % each way loses all three of a
-            have = await self.link.get_param(name)  # read's in 0.7 % of reads); as many asks again
+        # a parameter this flight wrote exists: silence about it is lost answers (10 % loss each way
+        # loses all three of a read's in 0.7 % of reads), so it is asked twice as often
+        have = await self.link.get_param(name, retries=6 if known else 3)
         if have is None:
             if known:
                 raise LinkError(f"parameter {name}: no answer from the vehicle (it was written earlier in this flight)")

@@ -56,8 +56,8 @@ def _framer(cls: type, from_values: bool) -> _Framer:
     """The framing of pymavlink message class ``cls`` as one function (generated once per class, as a
     compiled codec is): its fields read in wire order from the message object, or from the values in
     the order its ``*_encode`` takes them (``from_values``), numeric arrays spread, char arrays as
-    the one bytes value pymavlink keeps beside the text it shows; packed with the class's own struct;
-    trailing zeros trimmed; framed as :func:`frame` frames."""
+    the one bytes value pymavlink keeps beside the text it shows; packed with the class's own struct
+    and framed by :func:`frame`."""
     c: Any = cls
     chars = {name for name, kind in zip(c.fieldnames, c.fieldtypes) if kind == "char"}
     declared = list(c.fieldnames)
@@ -66,15 +66,9 @@ def _framer(cls: type, from_values: bool) -> _Framer:
         ref = (f"v[{declared.index(name)}]" if from_values
                else f"v._{name}_raw" if name in chars else f"v.{name}")
         parts.append(f"*{ref}" if length and name not in chars else ref)
-    msg_id = int(c.id)
     src = (f"def framed(v, seq, sysid, compid):\n"
-           f"    p = pack({', '.join(parts)})\n"
-           f"    p = p.rstrip(ZERO) or p[:1]\n"
-           f"    body = body_of(len(p), 0, 0, seq & 255, sysid, compid, {msg_id & 0xFFFF}, {msg_id >> 16}) + p\n"
-           f"    c = crc(body + EXTRA)\n"
-           f"    return STX + body + BYTE[c & 255] + BYTE[c >> 8]\n")
-    scope: dict[str, Any] = {"pack": c.unpacker.pack, "ZERO": b"\x00", "body_of": _BODY.pack, "crc": _crc,
-                             "EXTRA": _BYTE[int(c.crc_extra)], "STX": _BYTE[STX_V2], "BYTE": _BYTE}
+           f"    return frame(MSG_ID, EXTRA, pack({', '.join(parts)}), seq, sysid, compid)\n")
+    scope: dict[str, Any] = {"pack": c.unpacker.pack, "frame": frame, "MSG_ID": int(c.id), "EXTRA": int(c.crc_extra)}
     exec(compile(src, f"<framing of {c.msgname}>", "exec"), scope)  # noqa: S102
     framed: _Framer = scope["framed"]
     (_FROM_VALUES if from_values else _FROM_MESSAGE)[cls] = framed
@@ -114,8 +108,6 @@ def pack_payload(p: Payload, seq: int, sysid: int, compid: int) -> bytes:
 _Reader = Callable[[bytes], Any]
 """a frame -> pymavlink's message, or None (pymavlink's own decode is to judge it)"""
 _READERS: dict[int, _Reader] = {}
-_HEADER_IN = struct.Struct("<BBBBBBHB")
-"""a received header after STX: length, incompat and compat flags, sequence, system, component, id"""
 
 
 def decode_frame(buf: bytes) -> Any:
@@ -167,7 +159,7 @@ def _reader(cls: type) -> _Reader:
            f"    m._header = Header(low | high << 16, incompat, compat, mlen, seq, sysid, compid)\n"
            f"    return m\n")
     scope: dict[str, Any] = {"crc_of": _crc, "EXTRA": _BYTE[int(c.crc_extra)], "unpack": c.unpacker.unpack,
-                             "cls": cls, "ZERO": b"\x00", "header": _HEADER_IN.unpack_from,
+                             "cls": cls, "ZERO": b"\x00", "header": _BODY.unpack_from,
                              "Header": mavlink.MAVLink_header}
     exec(compile(src, f"<reading of {c.msgname}>", "exec"), scope)  # noqa: S102
     read: _Reader = scope["read"]

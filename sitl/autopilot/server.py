@@ -266,7 +266,8 @@ class MavlinkServer:
 
     def _deliver(self, to: Iterable[Peer | Address], payload: Message | bytes,
                  count: bool = True) -> None:
-        """The one way out: ``payload`` to each of ``to``. A message is packed in each peer's own
+        """The way out (the streams' tick, on the hot path, packs and sends the same way itself):
+        ``payload`` to each of ``to``. A message is packed in each peer's own
         sequence (an address that is no peer: the shared one); a frame packed elsewhere (an event, a
         frame forwarded) goes as it is. ``count``: one more in ``sent`` however many receive it
         (telemetry counts a message once when it encodes it)."""
@@ -399,8 +400,7 @@ class MavlinkServer:
                 peer.sent(msg_id, t)
             if peer.next_due == math.inf:
                 peer.next_due = min(peer.due.values(), default=math.inf)
-        self._next_due = (plan[0][0].next_due if len(plan) == len(table) == 1
-                          else min((p.next_due for p in table), default=math.inf))
+        self._next_due = min((p.next_due for p in table), default=math.inf)
 
     def set_interval(self, msg_id: int, interval_s: float | None, peer: Peer | None = None) -> None:
         """Stream ``msg_id`` to ``peer`` (None: every peer) every ``interval_s`` simulated seconds
